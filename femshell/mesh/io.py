@@ -1,0 +1,254 @@
+"""Read and write a :class:`~femshell.mesh.SurfaceMesh` through meshio (.msh, .vtu, .xdmf).
+
+File convention (the same for the three formats):
+
+* the triangles are one "triangle" cell block; the boundary curves are one
+  "line" cell block of vertex-pair segments;
+* integer cell data ``"boundary_id"``: 0 on triangles, k = 1, 2, ... on the
+  segments of the k-th boundary curve;
+* the curve names in gmsh's field-data form ``{name: [k, 1]}`` (id, dimension 1).
+  In .msh (gmsh 2.2 binary, which gmsh, meshio and ParaView read) these are
+  physical names and the element tags ``gmsh:physical`` carry the ids (there
+  is no boundary_id array), so gmsh shows the curves as physical groups;
+  meshio does not write field data to .vtu and
+  .xdmf, so :func:`write_mesh` adds it itself: a VTK ``<FieldData>`` block in
+  the .vtu and an XDMF ``<Information>`` element in the format meshio's XDMF
+  reader parses. Readers that ignore them (ParaView) still see boundary_id.
+
+:func:`read_mesh` also reads .msh files written by gmsh itself (physical
+curve groups become named boundary curves; unnamed physical ids are called
+``"curve-<id>"``) and drops the vertices no triangle uses (gmsh keeps
+geometry points). The mesh ``name`` is not stored; a read mesh is named after
+its file.
+
+Limitation: .msh files carry point data but no cell data, because meshio
+5.3's gmsh 2.2 reader splits element data wrongly when a file has two cell
+blocks (triangles and lines); :func:`write_mesh` refuses cell data for .msh.
+
+Lengths are whatever the mesh carries (design units); nothing is rescaled.
+
+Example
+-------
+>>> import tempfile, os
+>>> from femshell.mesh import plate, write_mesh, read_mesh
+>>> m = plate(1.0, 1.0, edge_length=0.25, structured=True)
+>>> path = os.path.join(tempfile.mkdtemp(), "plate.vtu")
+>>> write_mesh(m, path)
+>>> sorted(read_mesh(path).boundary)
+['bottom', 'left', 'right', 'top']
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from .surface import SurfaceMesh
+from .topology import MeshError
+
+__all__ = ["write_mesh", "read_mesh", "MESH_FORMATS"]
+
+#: file extension -> meshio format name
+MESH_FORMATS = {".msh": "gmsh22", ".vtu": "vtu", ".xdmf": "xdmf"}
+
+_BOUNDARY_ID = "boundary_id"
+_INTERNAL = (_BOUNDARY_ID, "gmsh:physical", "gmsh:geometrical")
+
+
+def _format(path: Path) -> str:
+    ext = path.suffix.lower()
+    if ext not in MESH_FORMATS:
+        raise ValueError(f"unknown mesh file extension '{path.suffix}' of {path}; "
+                         f"allowed: {', '.join(MESH_FORMATS)}")
+    return MESH_FORMATS[ext]
+
+
+# ----------------------------------------------------------------------------- write
+
+def write_mesh(mesh: SurfaceMesh, path, point_data=None, cell_data=None) -> None:
+    """Write ``mesh`` (triangles and named boundary curves) to a .msh, .vtu or .xdmf file.
+
+    ``point_data``: dict name -> array with one row per vertex; ``cell_data``:
+    dict name -> array with one row per triangle (the line cells of the
+    boundary curves get zeros; not for .msh, see the module docstring).
+    Names ``boundary_id`` and ``gmsh:*`` are reserved. Boundary curves
+    without segments are not written.
+
+    The write is atomic: the file is written in a temporary directory next to
+    ``path`` and moved into place with :func:`os.replace`, so a reader never
+    sees a half-written file. An .xdmf file comes with its HDF5 data in the
+    .h5 file of the same stem (meshio's naming; an existing file of that
+    name is replaced); the .h5 is moved first, then the .xdmf, so the pair is
+    not replaced as one unit, but neither file is ever partly written.
+
+    >>> write_mesh(m, "out/sphere.xdmf", point_data={"c": c})   # doctest: +SKIP
+    """
+    import meshio
+
+    path = Path(path)
+    fmt = _format(path)
+    if not isinstance(mesh, SurfaceMesh):
+        raise TypeError(f"write_mesh needs a SurfaceMesh, got {type(mesh).__name__}")
+    n, m = mesh.n_vertices, mesh.n_triangles
+    point_data = {str(k): _checked(k, v, n, "vertex") for k, v in (point_data or {}).items()}
+    cell_data = {str(k): _checked(k, v, m, "triangle") for k, v in (cell_data or {}).items()}
+    for k in list(point_data) + list(cell_data):
+        if k in _INTERNAL or k.startswith("gmsh:"):
+            raise ValueError(f"data name '{k}' is reserved for the mesh file convention")
+    if cell_data and fmt == "gmsh22":
+        raise ValueError("cell_data cannot be stored in .msh (meshio cannot read it back); use .vtu or .xdmf")
+
+    names = [k for k, v in mesh.boundary.items() if len(v)]
+    segs = [np.asarray(mesh.boundary[k], np.int64).reshape(-1, 2) for k in names]
+    ids = [np.full(len(s), i + 1, np.int64) for i, s in enumerate(segs)]
+    cells = [("triangle", mesh.triangles.astype(np.int64))]
+    data = {_BOUNDARY_ID: [np.zeros(m, np.int64)]}
+    if segs:
+        lines = np.concatenate(segs)
+        cells.append(("line", lines))
+        data[_BOUNDARY_ID].append(np.concatenate(ids))
+    for k, v in cell_data.items():
+        data[k] = [v] + ([np.zeros((len(lines),) + v.shape[1:], v.dtype)] if segs else [])
+    field_data = {k: np.array([i + 1, 1]) for i, k in enumerate(names)}
+    if fmt == "gmsh22":
+        # gmsh's own tags: physical = curve id (triangles: one surface group after the curves)
+        surface_id = len(names) + 1
+        data["gmsh:physical"] = [np.full(m, surface_id, np.int32)] + ([data[_BOUNDARY_ID][1].astype(np.int32)]
+                                                                       if segs else [])
+        data["gmsh:geometrical"] = [a.astype(np.int32) for a in data["gmsh:physical"]]
+        del data[_BOUNDARY_ID]   # element data would not read back; the physical tags carry the ids
+        field_data["surface"] = np.array([surface_id, 2])
+    out = meshio.Mesh(np.asarray(mesh.points, float), cells, point_data=point_data, cell_data=data,
+                      field_data=field_data)
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    try:
+        tmp = tmpdir / path.name   # same file name: the .xdmf refers to its .h5 by name
+        if fmt == "gmsh22":
+            meshio.write(tmp, out, file_format=fmt, binary=True)  # meshio's ASCII .msh data reader is broken
+        else:
+            meshio.write(tmp, out, file_format=fmt)
+        if fmt == "vtu":
+            _add_vtu_field_data(tmp, field_data)
+        elif fmt == "xdmf":
+            _add_xdmf_information(tmp, field_data)
+            h5 = tmp.with_suffix(".h5")
+            if h5.exists():
+                os.replace(h5, path.with_suffix(".h5"))
+        os.replace(tmp, path)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def _checked(name, value, n, what):
+    a = np.asarray(value)
+    if a.ndim == 0 or len(a) != n:
+        raise ValueError(f"data '{name}' must have one row per {what} ({n}), got shape {a.shape}")
+    return a
+
+
+def _add_vtu_field_data(path, field_data):
+    """Insert a VTK <FieldData> block (curve name -> [id, 1]) that meshio's VTU reader reads."""
+    if not field_data:
+        return
+    tree = ET.parse(path)
+    grid = tree.getroot().find("UnstructuredGrid")
+    fd = ET.Element("FieldData")
+    for name, value in field_data.items():
+        da = ET.SubElement(fd, "DataArray", type="Int64", Name=name, NumberOfTuples=str(len(value)),
+                           format="ascii")
+        da.text = " ".join(str(int(v)) for v in value)
+    grid.insert(0, fd)   # VTK expects FieldData before the Piece
+    tree.write(path, xml_declaration=True)
+
+
+def _add_xdmf_information(path, field_data):
+    """Insert the <Information> element that meshio's XDMF reader turns into field data."""
+    if not field_data:
+        return
+    tree = ET.parse(path)
+    grid = tree.getroot().find("Domain/Grid")
+    root = ET.Element("main")
+    for name, (tag, dim) in field_data.items():
+        ET.SubElement(root, "map", key=name, dim=str(int(dim))).text = str(int(tag))
+    info = ET.Element("Information", Name="Information", Value=str(len(field_data)))
+    info.text = ET.tostring(root, encoding="unicode")
+    grid.insert(0, info)
+    tree.write(path, xml_declaration=True)
+
+
+# ----------------------------------------------------------------------------- read
+
+def read_mesh(path, with_data=False):
+    """Read a surface mesh from a .msh, .vtu or .xdmf file.
+
+    Returns a :class:`SurfaceMesh` whose boundary curves are the named line
+    cells of the file (see the module docstring). With ``with_data=True``
+    returns ``(mesh, point_data, cell_data)``: the file's vertex data (rows of
+    the returned vertices) and triangle data (one row per triangle), without
+    the file-convention arrays.
+
+    Raises FileNotFoundError (with the path) for a missing file, ValueError
+    for an unknown extension, :class:`MeshError` for a file without triangles
+    or with boundary segments that are not edges of the triangles.
+
+    >>> mesh = read_mesh("meshes/sphere_r1_500.vtu")     # doctest: +SKIP
+    """
+    import meshio
+
+    path = Path(path)
+    fmt = _format(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"mesh file not found: {path}")
+    try:
+        raw = meshio.read(path, file_format="gmsh" if fmt == "gmsh22" else fmt)
+    except Exception as exc:   # meshio raises assorted errors for damaged files
+        raise MeshError(f"cannot read mesh file {path}: {exc}") from exc
+
+    blocks = [(i, c) for i, c in enumerate(raw.cells) if c.type == "triangle"]
+    if not blocks:
+        types = sorted({c.type for c in raw.cells}) or ["none"]
+        raise MeshError(f"mesh file {path} has no triangles (cell types: {', '.join(types)})")
+    tri = np.concatenate([c.data for _, c in blocks]).astype(np.int64)
+    line_blocks = [(i, c) for i, c in enumerate(raw.cells) if c.type == "line"]
+
+    boundary = {}
+    if line_blocks:
+        seg = np.concatenate([c.data for _, c in line_blocks]).astype(np.int64)
+        key = next((k for k in (_BOUNDARY_ID, "gmsh:physical") if k in raw.cell_data), None)
+        if key is None:
+            ids = np.zeros(len(seg), np.int64)
+        else:
+            ids = np.concatenate([np.asarray(raw.cell_data[key][i]) for i, _ in line_blocks]).astype(np.int64)
+        names = {int(v[0]): str(k) for k, v in raw.field_data.items()
+                 if np.size(v) >= 2 and int(np.ravel(v)[1]) == 1}
+        for i in np.unique(ids):   # a loop over the handful of curves
+            boundary[names.get(int(i), f"curve-{int(i)}")] = seg[ids == i]
+
+    # keep only the vertices that triangles use (gmsh files carry geometry points)
+    points = np.asarray(raw.points, float)
+    used = np.unique(tri)
+    point_data = {k: np.asarray(v) for k, v in raw.point_data.items() if not k.startswith("gmsh:")}
+    if len(used) < len(points):
+        new = np.full(len(points), -1, np.int64)
+        new[used] = np.arange(len(used))
+        tri = new[tri]
+        for k, s in boundary.items():
+            if (new[s] < 0).any():
+                raise MeshError(f"boundary curve '{k}' in {path} has a vertex that no triangle uses")
+            boundary[k] = new[s]
+        points = points[used]
+        point_data = {k: v[used] for k, v in point_data.items()}
+    mesh = SurfaceMesh(points, tri, boundary, name=path.name)
+    mesh.topology   # validate now: non-manifold edges or stray segments raise MeshError here
+    if not with_data:
+        return mesh
+    cell_data = {k: np.concatenate([np.asarray(v[i]) for i, _ in blocks])
+                 for k, v in raw.cell_data.items() if k not in _INTERNAL and not k.startswith("gmsh:")}
+    return mesh, point_data, cell_data
