@@ -1,0 +1,72 @@
+r"""Differential geometry of a triangulated surface: areas, normals, fundamental forms, curvature.
+
+Plain functions over arrays: ``points`` (n, 3), ``triangles`` (m, 3). Lengths in the
+units of ``points``; curvatures in 1/length.
+
+The mean curvature used by the chemistry (design.md 1.3) comes from the shell's own
+second fundamental form :math:`b` (see :mod:`femshell.shell.element`), per element
+
+.. math:: H = \tfrac12 \operatorname{tr}(a^{-1} b) - k_0,
+
+and is averaged to vertices with area weights (:func:`element_to_vertex`).
+
+Example
+-------
+>>> import numpy as np
+>>> a = np.array([[[1.0, 0.0], [0.0, 1.0]]]); b = a / 2.0
+>>> float(mean_curvature(a, b)[0])   # a sphere of radius 2
+0.5
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def triangle_area_vectors(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """½ (x1 − x0) × (x2 − x0): area times unit normal, (m, 3)."""
+    x = points[triangles]
+    return 0.5 * np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+
+
+def triangle_areas(points, triangles) -> np.ndarray:
+    return np.linalg.norm(triangle_area_vectors(points, triangles), axis=1)
+
+
+def face_normals(points, triangles) -> np.ndarray:
+    """Unit normals (m, 3), oriented by the vertex order (counter-clockwise seen from the normal)."""
+    av = triangle_area_vectors(points, triangles)
+    return av / np.linalg.norm(av, axis=1)[:, None]
+
+
+def vertex_normals(points, triangles) -> np.ndarray:
+    """Area-weighted unit vertex normals (n, 3)."""
+    av = triangle_area_vectors(points, triangles)
+    n = np.zeros((len(points), 3))
+    for k in range(3):
+        np.add.at(n, triangles[:, k], av)
+    return n / np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+
+
+def element_to_vertex(values: np.ndarray, points, triangles) -> np.ndarray:
+    """Area-weighted average of per-triangle values at each vertex: Σ A_f v_f / Σ A_f."""
+    area = triangle_areas(points, triangles)
+    n = len(points)
+    num = np.zeros(n)
+    den = np.zeros(n)
+    for k in range(3):
+        num += np.bincount(triangles[:, k], area * values, minlength=n)
+        den += np.bincount(triangles[:, k], area, minlength=n)
+    return num / np.maximum(den, 1e-300)
+
+
+def mean_curvature(a: np.ndarray, b: np.ndarray, k0: float = 0.0) -> np.ndarray:
+    """H = ½ tr(a⁻¹ b) − k0 per element from the fundamental forms (m, 2, 2)."""
+    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
+    tr = (a[:, 1, 1] * b[:, 0, 0] - a[:, 0, 1] * b[:, 1, 0] - a[:, 1, 0] * b[:, 0, 1] + a[:, 0, 0] * b[:, 1, 1]) / det
+    return 0.5 * tr - k0
+
+
+def gaussian_curvature(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """K = det(b) / det(a) per element."""
+    return np.linalg.det(b) / np.linalg.det(a)

@@ -1,0 +1,243 @@
+r"""A shell problem: mesh + material + rest state + boundary conditions + loads.
+
+Unknowns are ``q = [x.ravel(), theta]``: vertex positions (3 per vertex) and one
+rotation angle per edge. Constrained unknowns are removed; solvers see only the
+free ones, ``u = q[free]``, through :meth:`ShellModel.energy`,
+:meth:`ShellModel.gradient` and :meth:`ShellModel.hessian`, which return the
+total potential :math:`\Pi(u) = U(u) - \lambda W(u)` with load factor
+:math:`\lambda` (``model.load_factor``), its gradient and its sparse Hessian.
+
+Example
+-------
+>>> from femshell.mesh.generators import disk                      # doctest: +SKIP
+>>> from femshell.shell import ShellModel, Material, Clamped, uniform_growth
+>>> mesh = disk(radius=10, edge_length=1.0)
+>>> rest = uniform_growth(mesh.points, mesh.triangles, thickness=0.5, strain=0.01)
+>>> model = ShellModel(mesh, Material(E=1, nu=0.3), rest, [Clamped("outer")])
+>>> u = model.initial_unknowns()
+>>> model.energy(u) > 0
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import element as el
+from .assembly import SparseAssembler
+from .boundary import rigid_body_pins
+from .rest_state import RestState
+
+
+@dataclass(frozen=True)
+class Material:
+    """Isotropic St Venant–Kirchhoff material: Young's modulus E (energy unit), Poisson ratio nu."""
+
+    E: float = 1.0
+    nu: float = 0.3
+
+    def __post_init__(self):
+        if not (np.isfinite(self.E) and self.E > 0):
+            raise ValueError(f"Young's modulus E must be > 0, got {self.E}")
+        if not (-1.0 < self.nu <= 0.5):
+            raise ValueError(f"Poisson ratio nu must be in (-1, 0.5], got {self.nu}")
+
+    @property
+    def alpha(self) -> float:
+        """α = E ν / (1 − ν²)."""
+        return self.E * self.nu / (1.0 - self.nu**2)
+
+    @property
+    def beta(self) -> float:
+        """β = E / (2 (1 + ν))."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    def bending_stiffness(self, h: float) -> float:
+        """B = E h³ / (12 (1 − ν²))."""
+        return self.E * h**3 / (12.0 * (1.0 - self.nu**2))
+
+
+class ShellModel:
+    """The discrete shell energy of design.md 1.2 with exact derivatives (see module docstring).
+
+    Parameters
+    ----------
+    mesh : SurfaceMesh
+        Reference mesh; its points are the initial positions.
+    material : Material
+    rest : RestState
+        Target metric, curvature and thickness per element.
+    boundary_conditions : list
+        Objects from :mod:`femshell.shell.boundary`.
+    loads : list
+        Objects from :mod:`femshell.shell.loads`.
+    remove_rigid_modes : bool or None
+        Pin six position components (statically determinate) so that a free
+        shell has no rigid-body null space. ``None``: only when no boundary
+        condition fixes any position.
+    """
+
+    def __init__(self, mesh, material: Material, rest: RestState, boundary_conditions=(), loads=(),
+                 remove_rigid_modes=None):
+        self.mesh = mesh
+        self.material = material
+        self.topology = t = mesh.topology
+        n, ne, m = mesh.n_vertices, t.n_edges, mesh.n_triangles
+        if len(rest.metric) != m:
+            raise ValueError(f"rest state has {len(rest.metric)} elements, mesh has {m} triangles")
+        self.n_total = 3 * n + ne
+        self.load_factor = 1.0
+
+        fixed_pos = np.zeros((n, 3), bool)
+        values = mesh.points.copy()
+        edge_kind = np.where(t.edge_faces[:, 1] >= 0, el.INTERIOR, el.FREE)
+        nf = np.cross(mesh.points[t.triangles[:, 1]] - mesh.points[t.triangles[:, 0]],
+                      mesh.points[t.triangles[:, 2]] - mesh.points[t.triangles[:, 0]])
+        nf /= np.linalg.norm(nf, axis=1)[:, None]
+        edge_direction = nf[t.edge_faces[:, 0]]  # rest face normal: the clamped mid-edge normal
+        for bc in boundary_conditions:
+            bc.apply(mesh, fixed_pos, values, edge_kind, edge_direction)
+        if remove_rigid_modes is None:
+            remove_rigid_modes = not fixed_pos.any()
+        if remove_rigid_modes:
+            for v, c in rigid_body_pins(mesh.points):
+                fixed_pos[v, c] = True
+        self.boundary_conditions = list(boundary_conditions)
+
+        # edges whose normal is prescribed have no rotation unknown
+        fixed_theta = (edge_kind == el.CLAMPED) | (edge_kind == el.SYMMETRY)
+        self.fixed = np.concatenate([fixed_pos.ravel(), fixed_theta])
+        self.free = ~self.fixed
+        self.q_fixed = np.concatenate([values.ravel(), np.zeros(ne)])
+        self.edge_kind = edge_kind
+
+        # element stencils: own vertices, across-edge vertices, edge angles
+        opp = np.where(t.face_opposite >= 0, t.face_opposite, t.triangles)  # boundary: harmless stand-in
+        self.element_dofs = np.concatenate([
+            (3 * t.triangles[:, :, None] + np.arange(3)).reshape(m, 9),
+            (3 * opp[:, :, None] + np.arange(3)).reshape(m, 9),
+            3 * n + t.face_edges], axis=1)
+        self.edge_kind_el = edge_kind[t.face_edges]
+        self.edge_direction_el = edge_direction[t.face_edges]
+        self.face_edge_sign = t.face_edge_sign.astype(float)
+        self.set_rest_state(rest)
+
+        self.loads = list(loads)
+        for load in self.loads:
+            load.setup(self)
+        self.assembler = SparseAssembler(self.element_dofs, self.free)
+        self._load_assemblers = {}
+
+    # ---- rest state -------------------------------------------------------------------------
+    def set_rest_state(self, rest: RestState):
+        """Replace the targets (growth changes them every step); the pattern stays cached."""
+        self.rest = rest
+        self._abar_inv = rest.metric_inverse
+        self._bbar = rest.curvature
+        self._area = rest.area
+        self._hbar = rest.thickness
+
+    # ---- unknown vectors ------------------------------------------------------------------------
+    @property
+    def n_free(self) -> int:
+        return int(self.free.sum())
+
+    def initial_unknowns(self) -> np.ndarray:
+        """Free unknowns of the reference configuration (zero edge angles)."""
+        return self.q_fixed[self.free].copy()
+
+    def full(self, u: np.ndarray) -> np.ndarray:
+        """All unknowns q from the free ones u."""
+        q = self.q_fixed.copy()
+        q[self.free] = u
+        return q
+
+    def positions(self, u: np.ndarray) -> np.ndarray:
+        """Vertex positions (n, 3) of a state."""
+        return self.full(u)[: 3 * self.mesh.n_vertices].reshape(-1, 3)
+
+    def edge_angles(self, u):
+        return self.full(u)[3 * self.mesh.n_vertices:]
+
+    def prescribe(self, vertices, components, values):
+        """Change prescribed position components (for displacement-controlled loading)."""
+        idx = 3 * np.asarray(vertices)[:, None] + np.asarray(components)[None, :]
+        if not self.fixed[idx].all():
+            raise ValueError("only constrained components can be prescribed")
+        self.q_fixed[idx] = values
+
+    # ---- energy and derivatives -----------------------------------------------------------------
+    def _element_args(self, q):
+        mat = self.material
+        return (q[self.element_dofs], self._abar_inv, self._bbar, self._area, self._hbar,
+                mat.alpha, mat.beta, self.edge_kind_el, self.edge_direction_el, self.face_edge_sign)
+
+    def strain_energy(self, u) -> float:
+        return float(np.sum(el.batch_energy(*self._element_args(self.full(u)))))
+
+    def energy_parts(self, u):
+        """Membrane and bending energy per element, two (m,) arrays."""
+        mem, bend = el.batch_parts(*self._element_args(self.full(u)))
+        return np.asarray(mem), np.asarray(bend)
+
+    def external_work(self, u) -> float:
+        q = self.full(u)
+        return sum(load.work(q) for load in self.loads)
+
+    def energy(self, u) -> float:
+        """Total potential Π = U − λ W."""
+        e = self.strain_energy(u)
+        if self.loads:
+            e -= self.load_factor * self.external_work(u)
+        return e
+
+    def gradient(self, u) -> np.ndarray:
+        """∂Π/∂u over the free unknowns."""
+        q = self.full(u)
+        _, g = el.batch_value_and_grad(*self._element_args(q))
+        r = self.assembler.vector(np.asarray(g))
+        if self.loads:
+            r -= self.load_factor * self.load_gradient(u)
+        return r
+
+    def load_gradient(self, u) -> np.ndarray:
+        """∂W/∂u: minus the derivative of the residual with respect to the load factor."""
+        q = self.full(u)
+        return sum(load.gradient(q) for load in self.loads)[self.free]
+
+    def hessian(self, u):
+        """∂²Π/∂u² as a CSR matrix over the free unknowns (symmetric, possibly indefinite)."""
+        q = self.full(u)
+        K = self.assembler.matrix(np.asarray(el.batch_hessian(*self._element_args(q))))
+        for i, load in enumerate(self.loads):
+            blocks = load.hessian_blocks(q)
+            if blocks is None:
+                continue
+            dofs, h = blocks
+            if i not in self._load_assemblers:
+                self._load_assemblers[i] = SparseAssembler(dofs, self.free)
+            K = K - self.load_factor * self._load_assemblers[i].matrix(h)
+        return K
+
+    def accept(self, u):
+        """Tell path-dependent loads (edge moments) that ``u`` is an accepted state."""
+        q = self.full(u)
+        for load in self.loads:
+            if hasattr(load, "update_branch"):
+                load.update_branch(q)
+
+    def stress_free_rest_state(self, u=None, thickness=None) -> RestState:
+        """The rest state in which state ``u`` (default: the reference) has zero energy: ā = a(u), b̄ = b(u).
+
+        A curved mesh drawn as a shell's natural shape (a cylinder, a sphere) has a discrete
+        curvature close to, but not exactly, 1/R; using its own forms makes it exactly stress free.
+        """
+        a, b = self.fundamental_forms(self.initial_unknowns() if u is None else u)
+        return RestState(a, b, self.rest.thickness if thickness is None else thickness)
+
+    def fundamental_forms(self, u):
+        """Current first and second fundamental forms per element, (m,2,2) each."""
+        a, b = el.batch_forms(*self._element_args(self.full(u)))
+        return a, b

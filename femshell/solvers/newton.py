@@ -1,0 +1,288 @@
+r"""Newton's method for equilibria of an energy, returning stable ones when asked.
+
+The solver knows a *problem*: any object with ``energy(u)``, ``gradient(u)`` and
+``hessian(u)`` (scipy sparse, symmetric). It minimises :math:`\Pi(u)`:
+
+1. factorise :math:`K = \nabla^2\Pi` with a symmetric-indefinite LDLᵀ, which also
+   gives the inertia (number of negative eigenvalues, Sylvester's law);
+2. if :math:`K` is not positive definite, the Newton step is still taken when it is
+   a descent direction that the line search accepts; otherwise K is shifted,
+   :math:`K + \tau D` (:math:`D` = the positive diagonal of K), with τ growing until
+   it is positive definite (a Levenberg–Marquardt step: always a descent direction);
+3. backtracking line search on :math:`\Pi` (Armijo), falling back to the residual
+   norm when energy differences reach round-off;
+4. converged when :math:`\|\nabla\Pi\| \le` ``rtol`` × scale + ``atol``;
+5. with ``stable=True`` a converged point whose Hessian has negative eigenvalues is
+   a saddle: step along the eigenvector of the most negative eigenvalue (the sign
+   that lowers Π) and continue, so the result is a local minimum.
+
+Example
+-------
+>>> import numpy as np, scipy.sparse as sp
+>>> class Quartic:  # a double well in 2D: minima at (+-1, 0), saddle at 0
+...     def energy(self, u): return (u[0]**2 - 1)**2 / 4 + u[1]**2 / 2
+...     def gradient(self, u): return np.array([u[0]**3 - u[0], u[1]])
+...     def hessian(self, u): return sp.csr_matrix(np.diag([3*u[0]**2 - 1, 1.0]))
+>>> r = minimize(Quartic(), np.array([0.0, 0.3]), stable=True, log=None)
+>>> r.converged, r.stable, abs(round(r.u[0], 6))
+(True, True, 1.0)
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .linear import LinearSolverError, factorize, smallest_eigenvalues
+
+
+class NewtonError(RuntimeError):
+    """Newton did not converge; ``result`` holds the last iterate and the history."""
+
+    def __init__(self, message, result=None):
+        super().__init__(message)
+        self.result = result
+
+
+@dataclass
+class NewtonResult:
+    u: np.ndarray
+    converged: bool
+    iterations: int
+    energy: float
+    residual: float
+    residual_scale: float
+    n_negative: int | None = None
+    stable: bool | None = None
+    history: list = field(default_factory=list)
+    times: dict = field(default_factory=dict)
+
+    def summary(self) -> str:
+        t = ", ".join(f"{k} {v:.2f}s" for k, v in self.times.items())
+        st = "" if self.stable is None else (" stable" if self.stable else f" UNSTABLE ({self.n_negative} neg.)")
+        return (f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations, "
+                f"|r| = {self.residual:.3e} (scale {self.residual_scale:.3e}), energy {self.energy:.10g}{st}; {t}")
+
+
+def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, residual_scale=None,
+             backend="auto", max_step=None, log=print) -> NewtonResult:
+    """Find an equilibrium (a local minimum if ``stable``) of ``problem`` from ``u0``.
+
+    Parameters
+    ----------
+    rtol, atol : convergence when |grad| <= rtol * scale + atol, with scale =
+        ``residual_scale`` or, by default, the norm of the applied load λ ∂W/∂u where
+        the problem has loads, else |grad(u0)|.
+    stable : escape saddle points along negative-curvature directions.
+    max_step : largest allowed max-norm of a step (None: unlimited).
+    """
+    u = np.array(u0, dtype=float)
+    times = {"assembly": 0.0, "factorize": 0.0, "solve": 0.0, "line_search": 0.0}
+    t0 = time.perf_counter()
+    e = problem.energy(u)
+    g = problem.gradient(u)
+    times["assembly"] += time.perf_counter() - t0
+    if not (np.isfinite(e) and np.all(np.isfinite(g))):
+        raise NewtonError("energy or gradient is not finite at the starting point")
+    if residual_scale is None:
+        # the applied load sets the scale; without one (growth), the initial imbalance does
+        if hasattr(problem, "load_gradient") and getattr(problem, "loads", None) and problem.load_factor:
+            residual_scale = abs(problem.load_factor) * np.linalg.norm(problem.load_gradient(u))
+        else:
+            residual_scale = np.linalg.norm(g)
+    residual_scale = max(residual_scale, 1e-300)
+    history = []
+    n_neg = None
+    res = np.linalg.norm(g)
+    escapes = 0
+    tau = None
+    for it in range(max_iter + 1):
+        res = np.linalg.norm(g)
+        history.append((it, e, res))
+        if log:
+            log(f"    newton {it:3d}  energy {e:.12g}  |r| {res:.3e}")
+        t = time.perf_counter()
+        K = problem.hessian(u)
+        times["assembly"] += time.perf_counter() - t
+        t = time.perf_counter()
+        fac = _factorize(K, backend)
+        times["factorize"] += time.perf_counter() - t
+        n_neg = fac.inertia[1] if fac.inertia is not None else None
+        if res <= rtol * residual_scale + atol:
+            if not stable or n_neg == 0:
+                break
+            if n_neg is None:
+                lam, vec = smallest_eigenvalues(K, k=1)
+                if lam[0] >= 0:
+                    n_neg = 0
+                    break
+            if escapes >= 20:
+                raise NewtonError("could not leave the saddle after 20 escapes", _result(
+                    u, False, it, e, res, residual_scale, n_neg, history, times))
+            escapes += 1
+            t = time.perf_counter()
+            u, e, g = _escape_saddle(problem, u, e, K, log)
+            times["line_search"] += time.perf_counter() - t
+            continue
+        if it == max_iter:
+            break
+        t = time.perf_counter()
+        d = -fac.solve(g)
+        times["solve"] += time.perf_counter() - t
+        ok = False
+        # with negative curvature the plain Newton step is still taken when it lowers the
+        # energy (a compressed flat sheet relaxes in plane this way); otherwise shift
+        if not n_neg or g @ d < -1e-8 * np.linalg.norm(g) * np.linalg.norm(d):
+            u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
+        if not ok and n_neg:
+            # start near the last shift that worked: saves most of the trial factorisations
+            fac, tau = _shift_to_positive(K, backend, times, max(1e-8, tau / 16) if tau else 1e-6)
+            if log:
+                log(f"    newton: Hessian has {n_neg} negative eigenvalues; shifted by {tau:.2e}")
+            d = -fac.solve(g)
+            u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
+        if not ok:
+            raise NewtonError(f"line search failed at iteration {it} (|r| = {res:.3e})", _result(
+                u, False, it, e, res, residual_scale, n_neg, history, times))
+    converged = res <= rtol * residual_scale + atol
+    out = _result(u, converged, it, e, res, residual_scale, n_neg, history, times)
+    if not converged:
+        raise NewtonError(f"Newton did not converge in {max_iter} iterations: |r| = {res:.3e} > "
+                          f"{rtol * residual_scale + atol:.3e}", out)
+    return out
+
+
+def _result(u, converged, it, e, res, scale, n_neg, history, times):
+    return NewtonResult(u, converged, it, e, res, scale, n_neg, None if n_neg is None else n_neg == 0,
+                        history, dict(times))
+
+
+def _factorize(K, backend):
+    try:
+        return factorize(K, kind="symmetric_indefinite", backend=backend)
+    except LinearSolverError as exc:
+        raise NewtonError(f"the Hessian could not be factorised: {exc}") from exc
+
+
+def _step(problem, u, e, g, d, max_step, times):
+    if max_step is not None:
+        big = np.abs(d).max()
+        if big > max_step:
+            d = d * (max_step / big)
+    t = time.perf_counter()
+    out = _line_search(problem, u, e, g, d)
+    times["line_search"] += time.perf_counter() - t
+    return out
+
+
+def _shift_to_positive(K, backend, times, tau_start=1e-6):
+    """Factorise K + tau D with a tau (growing by 4 from ``tau_start``) that makes it positive definite."""
+    D = np.abs(K.diagonal())
+    D = np.where(D > 0, D, D.max() if D.max() > 0 else 1.0)
+    tau = tau_start
+    for _ in range(60):
+        t = time.perf_counter()
+        fac = _factorize(K + sp.diags(tau * D), backend)
+        times["factorize"] += time.perf_counter() - t
+        if fac.inertia is None or fac.inertia[1] == 0:
+            return fac, tau
+        tau *= 4.0
+    raise NewtonError("could not shift the Hessian to positive definite")
+
+
+def _line_search(problem, u, e, g, d, c1=1e-4, max_halvings=30):
+    """Backtracking Armijo search on the energy; near convergence, on the residual norm."""
+    slope = g @ d
+    if slope >= 0:  # not a descent direction (should not happen with a positive definite system)
+        d = -g
+        slope = -(g @ g)
+    r0 = np.linalg.norm(g)
+    alpha = 1.0
+    for _ in range(max_halvings):
+        un = u + alpha * d
+        en = problem.energy(un)
+        if np.isfinite(en):
+            # energy differences below round-off cannot rank steps: judge by the residual
+            roundoff = 1e-12 * max(abs(e), 1e-300)
+            if en <= e + c1 * alpha * slope or abs(en - e) <= roundoff:
+                gn = problem.gradient(un)
+                if np.all(np.isfinite(gn)) and (en < e - roundoff or np.linalg.norm(gn) < r0):
+                    return un, en, gn, True
+        alpha *= 0.5
+    return u, e, g, False
+
+
+def _escape_saddle(problem, u, e, K, log):
+    """Move from a saddle along the most negative curvature direction, to lower energy."""
+    lam, vec = smallest_eigenvalues(K, k=1)
+    v = vec[:, 0]
+    scale = max(np.abs(u).max(), 1.0)
+    for amp in (1e-3, 3e-3, 1e-2, 3e-2, 1e-1):
+        best = None
+        for s in (1.0, -1.0):
+            un = u + s * amp * scale * v / np.abs(v).max()
+            en = problem.energy(un)
+            if np.isfinite(en) and en < e and (best is None or en < best[1]):
+                best = (un, en)
+        if best is not None:
+            if log:
+                log(f"    newton: left a saddle (eigenvalue {lam[0]:.3e}) along its mode, amplitude {amp:g}")
+            return best[0], best[1], problem.gradient(best[0])
+    raise NewtonError(f"at a saddle (eigenvalue {lam[0]:.3e}) but no step along its mode lowers the energy")
+
+
+def follow_load(problem, u0, factors, *, max_cuts=8, callback=None, log=print, **newton_options):
+    """Equilibria along increasing load factors, each warm-started from the previous one.
+
+    ``problem.load_factor`` is set to each value of ``factors`` in turn. A step
+    whose Newton solve fails is cut in half (up to ``max_cuts`` times) and retried
+    from the last converged state; after that a :class:`NewtonError` carries the
+    last converged state. ``problem.accept(u)`` (if present) is called after each
+    converged step; ``callback(factor, result)`` after each requested factor.
+    Returns the list of :class:`NewtonResult` at the requested factors.
+    """
+    u = np.array(u0, float)
+    current = getattr(problem, "load_factor", 0.0) if len(factors) and factors[0] != 0 else 0.0
+    previous = None  # (load factor, state) of the converged step before, for the secant predictor
+    out = []
+    for target in factors:
+        step = target - current
+        cuts = 0
+        while True:
+            trial = current + step
+            problem.load_factor = trial
+            start = u
+            if previous is not None and previous[0] != current:
+                # secant predictor: along a smooth path this lands near the next equilibrium,
+                # sparing the damped iterations a large-rotation step needs from the last state
+                start = u + (trial - current) / (current - previous[0]) * (u - previous[1])
+                if not np.isfinite(problem.energy(start)):
+                    start = u
+            try:
+                res = minimize(problem, start, log=None, **newton_options)
+            except NewtonError as exc:
+                cuts += 1
+                if cuts > max_cuts:
+                    problem.load_factor = current
+                    raise NewtonError(f"load step to {trial:.6g} failed after {max_cuts} cuts: {exc}",
+                                      _result(u, False, 0, problem.energy(u), float("nan"), 1.0, None, [], {}))
+                step *= 0.5
+                if log:
+                    log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
+                continue
+            previous = (current, u)
+            u, current = res.u, trial
+            if hasattr(problem, "accept"):
+                problem.accept(u)
+            if abs(current - target) <= 1e-14 * max(1.0, abs(target)):
+                break
+            step = target - current
+        if log:
+            log(f"  load factor {target:.6g}: {res.summary()}")
+        if callback:
+            callback(target, res)
+        out.append(res)
+    return out

@@ -1,0 +1,38 @@
+"""Helpers shared by the validation cases."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..solvers.linear import factorize
+
+
+def linear_response(model):
+    """Linear (small-displacement) solution: one Newton step from the reference state, K0 du = -g0.
+
+    For the classical linear benchmarks this is exactly the linear-theory answer of the
+    same discretisation (the tangent at the undeformed state).
+    """
+    u0 = model.initial_unknowns()
+    du = factorize(model.hessian(u0), kind="spd").solve(-model.gradient(u0))
+    return model.positions(u0 + du) - model.mesh.points
+
+
+def observed_order(n_vertices, errors):
+    """Least-squares order p in err ~ h^p with h ~ n^(-1/2); None with fewer than 2 usable points."""
+    n = np.asarray(n_vertices, float)
+    e = np.asarray(errors, float)
+    ok = (n > 0) & (e > 0) & np.isfinite(e)
+    if ok.sum() < 2:
+        return None
+    slope = np.polyfit(np.log(n[ok]), np.log(e[ok]), 1)[0]
+    return -2.0 * slope
+
+
+def order_row(quantity, rows):
+    """A row reporting the fitted convergence order of the rows whose quantity starts with ``quantity``."""
+    from .framework import Row
+
+    sel = [r for r in rows if r.quantity.split(" @")[0] == quantity and r.rel_error is not None]
+    p = observed_order([r.n_vertices for r in sel], [r.rel_error for r in sel])
+    return [] if p is None else [Row(f"observed order of {quantity}", p)]

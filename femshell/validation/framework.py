@@ -1,0 +1,163 @@
+"""Registry, result rows, JSON and plot output of the validation cases."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import os
+import tempfile
+import time
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+# command-line name -> module in this package; a case is listed here once it exists
+CASES = {
+    "patch-tests": "patch_tests",
+    "cantilever-end-moment": "cantilever_end_moment",
+    "cantilever-end-shear": "cantilever_end_shear",
+    "scordelis-lo": "scordelis_lo",
+    "pinched-cylinder": "pinched_cylinder",
+    "clamped-plate-pressure": "clamped_plate_pressure",
+    "linear-buckling-plates": "linear_buckling_plates",
+    "clamped-plate-growth-buckling": "clamped_plate_growth_buckling",
+    "euler-strip": "euler_strip",
+    "laplace-beltrami-sphere": "laplace_beltrami_sphere",
+    "curvature": "curvature",
+}
+LEVELS = ("quick", "full")
+
+
+@dataclass
+class Row:
+    """One validated quantity; ``reference`` and ``tolerance`` may be None (reported only)."""
+
+    quantity: str
+    value: float
+    reference: float | None = None
+    tolerance: float | None = None
+    n_vertices: int = 0
+    wall_s: float = 0.0
+    rel_error: float | None = None
+    passed: bool | None = None
+
+    def __post_init__(self):
+        self.value = float(self.value)
+        if self.reference is not None:
+            ref = float(self.reference)
+            self.reference = ref
+            if not math.isfinite(self.value):
+                self.rel_error = None
+            else:
+                scale = abs(ref) if ref != 0 else 1.0  # absolute error against a zero reference
+                self.rel_error = abs(self.value - ref) / scale
+        if self.tolerance is not None:
+            self.passed = self.rel_error is not None and self.rel_error <= self.tolerance
+
+
+@contextmanager
+def timed():
+    """``with timed() as t: ...`` then ``t()`` is the elapsed wall time in seconds."""
+    t0 = time.perf_counter()
+    box = [None]
+    yield lambda: box[0] if box[0] is not None else time.perf_counter() - t0
+    box[0] = time.perf_counter() - t0
+
+
+def list_cases() -> dict:
+    """name -> one-line description of every available case."""
+    out = {}
+    for name in CASES:
+        mod = _load(name)
+        if mod is not None:
+            out[name] = mod.DESCRIPTION
+    return out
+
+
+def _load(name):
+    try:
+        return importlib.import_module(f"{__package__}.{CASES[name]}")
+    except ModuleNotFoundError as exc:
+        if exc.name == f"{__package__}.{CASES[name]}":
+            return None
+        raise
+
+
+def run_case(name: str, level: str = "quick", out_dir: str | os.PathLike = "validation-out", log=print) -> bool:
+    """Run one case, write NAME.json and NAME.png into ``out_dir``; True if every toleranced row passed."""
+    if name not in CASES or _load(name) is None:
+        raise KeyError(f"unknown validation case '{name}'; available: {', '.join(list_cases())}")
+    if level not in LEVELS:
+        raise ValueError(f"level must be one of {LEVELS}, got '{level}'")
+    mod = _load(name)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    rows = mod.run(level)
+    total = time.perf_counter() - t0
+    for r in rows:
+        status = "" if r.passed is None else ("PASS" if r.passed else "FAIL")
+        ref = "" if r.reference is None else f" ref {r.reference:.6g}"
+        err = "" if r.rel_error is None else f" err {r.rel_error:.2e}"
+        tol = "" if r.tolerance is None else f" tol {r.tolerance:.0e}"
+        log(f"  {r.quantity:<48} {r.value:.6g}{ref}{err}{tol}  n={r.n_vertices} {r.wall_s:.2f}s {status}")
+    doc = {"case": name, "level": level, "source": mod.SOURCE, "description": mod.DESCRIPTION,
+           "total_wall_s": total, "rows": [_row_json(r) for r in rows]}
+    _atomic_write_text(out / f"{name}.json", json.dumps(doc, indent=1))
+    _plot(mod, rows, out / f"{name}.png", f"{name} ({level})")
+    ok = all(r.passed for r in rows if r.tolerance is not None)
+    log(f"{name}: {'passed' if ok else 'FAILED'} ({sum(r.passed is True for r in rows)} of "
+        f"{sum(r.tolerance is not None for r in rows)} toleranced rows passed, {total:.1f} s)")
+    return ok
+
+
+def _row_json(r: Row) -> dict:
+    d = asdict(r)
+    for k in ("value", "reference", "rel_error", "wall_s"):
+        if isinstance(d[k], float) and not math.isfinite(d[k]):
+            d[k] = None  # never NaN in a result file
+    return {k: d[k] for k in ("quantity", "value", "reference", "rel_error", "tolerance", "passed",
+                              "n_vertices", "wall_s")}
+
+
+def _atomic_write_text(path: Path, text: str):
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def _plot(mod, rows, path: Path, title: str):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if hasattr(mod, "plot"):
+        fig = plt.figure(figsize=(10, 4.5))
+        mod.plot(rows, fig)
+    else:
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.5))
+        series = {}
+        for r in rows:
+            if r.rel_error is not None and r.n_vertices > 0:
+                series.setdefault(r.quantity.split(" @")[0], []).append(r)
+        for q, rs in series.items():
+            rs = sorted(rs, key=lambda r: r.n_vertices)
+            err = [max(r.rel_error, 1e-16) for r in rs]
+            ax1.loglog([r.n_vertices for r in rs], err, "o-", label=q)
+            ax2.loglog([max(r.wall_s, 1e-3) for r in rs], err, "o-", label=q)
+        ax1.set_xlabel("vertices")
+        ax2.set_xlabel("wall time [s]")
+        for ax in (ax1, ax2):
+            ax.set_ylabel("relative error")
+            ax.grid(True, which="both", alpha=0.3)
+        if series:
+            ax1.legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.stem}.tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)

@@ -1,0 +1,222 @@
+"""femshell.solvers.linear: solves, inertia, refactorisation, errors, smallest eigenvalues."""
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from femshell.solvers.linear import (LinearSolverError, available_backends, factorize,
+                                     smallest_eigenvalues)
+
+BACKENDS = [pytest.param(b, marks=pytest.mark.skipif(b not in available_backends(), reason=f"{b} unavailable"))
+            for b in ("pardiso", "superlu")]
+
+
+def random_spd(n, seed, density=0.002):
+    rng = np.random.default_rng(seed)
+    B = sp.random(n, n, density=density, random_state=seed, data_rvs=rng.standard_normal)
+    return (B @ B.T + sp.diags(rng.uniform(0.5, 2.0, n))).tocsr()
+
+
+def random_indefinite(n, seed, density=0.003, zero_diagonal_every=0):
+    rng = np.random.default_rng(seed)
+    B = sp.random(n, n, density=density, random_state=seed, data_rvs=rng.standard_normal)
+    d = rng.standard_normal(n)
+    if zero_diagonal_every:
+        d[::zero_diagonal_every] = 0.0
+    A = (B + B.T + sp.diags(d)).tocsr()
+    A.eliminate_zeros()
+    return A
+
+
+def laplacian_2d(m, neumann=False):
+    T = sp.diags([-np.ones(m - 1), 2 * np.ones(m), -np.ones(m - 1)], [-1, 0, 1]).tolil()
+    if neumann:
+        T[0, 0] = T[-1, -1] = 1.0
+    T = T.tocsr()
+    I = sp.identity(m, format="csr")
+    return (sp.kron(T, I) + sp.kron(I, T)).tocsr()
+
+
+def rel_residual(A, x, b):
+    return np.linalg.norm(A @ x - b) / np.linalg.norm(b)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("name", ["random", "laplacian"])
+def test_spd_solve_matches_spsolve(backend, name):
+    A = random_spd(2000, 1) if name == "random" else laplacian_2d(45)
+    b = np.random.default_rng(2).standard_normal(A.shape[0])
+    f = factorize(A, "spd", backend)
+    x = f.solve(b)
+    ref = spla.spsolve(A.tocsc(), b)
+    assert np.linalg.norm(x - ref) <= 1e-9 * np.linalg.norm(ref)
+    assert f.inertia == (A.shape[0], 0, 0)
+    assert f.backend == backend and f.factor_time > 0
+    # several right-hand sides at once
+    B = np.random.default_rng(3).standard_normal((A.shape[0], 3))
+    X = f.solve(B)
+    assert X.shape == B.shape and rel_residual(A, X, B) < 1e-10
+    f.free()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("zero_diag", [0, 7])
+def test_indefinite_solve_matches_spsolve(backend, zero_diag):
+    A = random_indefinite(2000, 4, zero_diagonal_every=zero_diag)
+    b = np.random.default_rng(5).standard_normal(A.shape[0])
+    f = factorize(A, "symmetric_indefinite", backend)
+    x = f.solve(b)
+    ref = spla.spsolve(A.tocsc(), b)
+    assert np.linalg.norm(x - ref) <= 1e-8 * np.linalg.norm(ref)
+    assert rel_residual(A, x, b) < 1e-10
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_inertia_against_eigvalsh(backend):
+    n_checked = 0
+    for seed in range(12):
+        A = random_indefinite(200, seed, density=0.05, zero_diagonal_every=(0 if seed % 3 else 9))
+        ev = np.linalg.eigvalsh(A.toarray())
+        if np.abs(ev).min() < 1e-8:
+            continue
+        f = factorize(A, "symmetric_indefinite", backend)
+        assert f.inertia == (int((ev > 0).sum()), int((ev < 0).sum()), 0), f"seed {seed}"
+        n_checked += 1
+    assert n_checked >= 10
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_inertia_of_shifted_laplacian(backend):
+    A = laplacian_2d(30)
+    ev = np.linalg.eigvalsh(A.toarray())
+    # the square grid has double eigenvalues: shift into a clear gap above the 7th or so
+    k = 7 + int(np.argmax(np.diff(ev[6:20]) > 1e-3))
+    sigma = 0.5 * (ev[k - 1] + ev[k])             # k eigenvalues below the shift
+    f = factorize(A - sigma * sp.identity(A.shape[0]), "symmetric_indefinite", backend)
+    assert f.inertia == (A.shape[0] - k, k, 0)
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pardiso unavailable")
+def test_pardiso_refactor_reuses_analysis():
+    A = laplacian_2d(40)
+    f = factorize(A, "spd", "pardiso")
+    b = np.ones(A.shape[0])
+    A2 = (A + sp.diags(np.linspace(0.1, 1.0, A.shape[0]))).tocsr()
+    f.refactor(A2)
+    assert f.n_analyses == 1 and f.n_factorizations == 2 and f.analysis_time == 0.0
+    assert rel_residual(A2, f.solve(b), b) < 1e-12
+    # a changed pattern is analysed again
+    A3 = (A2 + sp.diags(np.ones(A.shape[0] - 5), 5) + sp.diags(np.ones(A.shape[0] - 5), -5)).tocsr() * 1.0
+    A3 = (A3 + 10 * sp.identity(A.shape[0])).tocsr()
+    f.refactor(A3)
+    assert f.n_analyses == 2
+    assert rel_residual(A3, f.solve(b), b) < 1e-12
+    # factorize(reuse=...) refactorises the same object
+    g = factorize(A3 * 2.0, "spd", "pardiso", reuse=f)
+    assert g is f and f.n_analyses == 2
+    assert rel_residual(A3 * 2.0, g.solve(b), b) < 1e-12
+    f.free()
+    with pytest.raises(LinearSolverError, match="freed"):
+        f.solve(b)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_nan_and_inf_entries_are_named(backend):
+    A = laplacian_2d(10).astype(float)
+    A.data[A.indptr[17]] = np.nan
+    A.data[A.indptr[23] + 1] = np.nan
+    A.data[A.indptr[40]] = np.inf
+    with pytest.raises(LinearSolverError, match=r"NaN and infinite entries in 3 row\(s\), first row 17"):
+        factorize(A, "spd", backend)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("kind", ["spd", "symmetric_indefinite"])
+def test_singular_matrix_is_reported(backend, kind):
+    A = laplacian_2d(20, neumann=True)       # constants are in the kernel: singular
+    with pytest.raises(LinearSolverError, match="singular"):
+        factorize(A, kind, backend)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_singular_block_names_the_unknown(backend):
+    # a free 1D chain (singular) next to a well-posed diagonal block
+    n = 50
+    T = sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1]).tolil()
+    T[0, 0] = T[-1, -1] = 1.0
+    A = sp.block_diag([sp.diags(np.arange(1.0, n + 1)), T.tocsr() * 1.7]).tocsr()
+    with pytest.raises(LinearSolverError, match="singular") as exc:
+        factorize(A, "spd", backend)
+    import re
+
+    where = re.search(r"at unknown (\d+)", str(exc.value))
+    if where:                                 # SuperLU's exact zero pivot does not say where
+        assert int(where.group(1)) >= n
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_zero_row_and_not_spd_and_asymmetric(backend):
+    A = laplacian_2d(10).tolil()
+    A[5, :] = 0
+    A[:, 5] = 0
+    with pytest.raises(LinearSolverError, match="zero .* row.*first row 5"):
+        factorize(A.tocsr(), "spd", backend)
+    with pytest.raises(LinearSolverError, match="not positive definite"):
+        factorize(sp.diags([1.0, 2.0, -1.0, 3.0]).tocsr(), "spd", backend)
+    B = laplacian_2d(10).tolil()
+    B[3, 4] = 0.5
+    with pytest.raises(LinearSolverError, match="not symmetric"):
+        factorize(B.tocsr(), "spd", backend)
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="kind"):
+        factorize(sp.identity(3, format="csr"), kind="cholesky")
+    with pytest.raises(ValueError, match="backend"):
+        factorize(sp.identity(3, format="csr"), backend="mumps")
+    f = factorize(sp.identity(3, format="csr"), backend="auto")
+    assert f.backend == available_backends()[0]
+    with pytest.raises(ValueError, match="right-hand side"):
+        f.solve(np.ones(4))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_smallest_eigenvalues_spd_with_mass(backend):
+    A = laplacian_2d(25)                      # 625 unknowns: the sparse path
+    n = A.shape[0]
+    M = np.random.default_rng(0).uniform(0.5, 1.5, n)
+    ref = sla.eigh(A.toarray(), np.diag(M), eigvals_only=True)[:6]
+    ev = smallest_eigenvalues(A, k=6, M=M, backend=backend, return_vectors=False)
+    assert np.allclose(ev, ref, rtol=1e-8, atol=1e-10)
+    ev, V = smallest_eigenvalues(A, k=3, M=sp.diags(M), backend=backend)
+    assert np.allclose(V.T @ (M[:, None] * V), np.eye(3), atol=1e-8)
+    assert np.allclose(A @ V, (M[:, None] * V) * ev, atol=1e-8)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_smallest_eigenvalues_indefinite(backend):
+    A = laplacian_2d(25)
+    n = A.shape[0]
+    ev_all = np.linalg.eigvalsh(A.toarray())
+    # a few eigenvalues just below zero (an unstable equilibrium near a bifurcation)
+    k = 3 + int(np.argmax(np.diff(ev_all[2:20]) > 1e-3))
+    Ks = (A - 0.5 * (ev_all[k - 1] + ev_all[k]) * sp.identity(n)).tocsr()
+    ref = np.linalg.eigvalsh(Ks.toarray())[:5]
+    assert np.allclose(smallest_eigenvalues(Ks, k=5, backend=backend)[0], ref, rtol=1e-8, atol=1e-10)
+    # and two eigenvalues far below the default shift
+    d = np.zeros(n)
+    d[[10, 300]] = [-50.0, -80.0]
+    Kf = (A + sp.diags(d)).tocsr()
+    ref = np.linalg.eigvalsh(Kf.toarray())[:4]
+    assert np.allclose(smallest_eigenvalues(Kf, k=4, backend=backend)[0], ref, rtol=1e-8, atol=1e-10)
+
+
+def test_smallest_eigenvalues_dense_path_and_free_body():
+    A = laplacian_2d(10, neumann=True)        # 100 unknowns: dense path; one zero eigenvalue
+    ev = smallest_eigenvalues(A, k=3, return_vectors=False)
+    assert abs(ev[0]) < 1e-12 and np.allclose(ev, np.linalg.eigvalsh(A.toarray())[:3])
+    A = laplacian_2d(25, neumann=True)        # sparse path: the shift keeps K − σM non-singular
+    ev = smallest_eigenvalues(A, k=3, return_vectors=False)
+    assert abs(ev[0]) < 1e-10 and np.allclose(ev, np.linalg.eigvalsh(A.toarray())[:3], atol=1e-10)
