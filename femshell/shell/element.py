@@ -144,8 +144,9 @@ CHUNK_SMALL, CHUNK = 256, 4096
 def _batched(fn):
     """Vectorise ``fn`` over elements in fixed-size chunks.
 
-    JAX compiles once per array shape; fixed chunks (the last one padded with copies
-    of element 0) mean one compilation serves every mesh size, and bound the memory
+    JAX compiles once per array shape; two fixed chunk sizes (the bulk in big chunks,
+    the rest in small ones, the last padded with copies of element 0) mean two
+    compilations serve every mesh size with little wasted work, and bound the memory
     of the (m, 21, 21) Hessian intermediates.
     """
     compiled = jax.jit(jax.vmap(fn, in_axes=_AXES))
@@ -153,9 +154,12 @@ def _batched(fn):
     def run(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign):
         per_element = [q, abar_inv, bbar, area, hbar, kind, direction, sign]
         m = len(q)
-        size = CHUNK_SMALL if m <= CHUNK_SMALL else CHUNK
+        # big chunks for the bulk, small ones for the rest: little padding at any size
+        n_big = m // CHUNK if m - (m // CHUNK) * CHUNK < CHUNK - CHUNK_SMALL else m // CHUNK + 1
+        starts = [(i * CHUNK, CHUNK) for i in range(n_big)]
+        starts += [(s, CHUNK_SMALL) for s in range(n_big * CHUNK, m, CHUNK_SMALL)]
         pieces = []
-        for start in range(0, m, size):
+        for start, size in starts:
             part = [a[start:start + size] for a in per_element]
             k = len(part[0])
             if k < size:

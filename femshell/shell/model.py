@@ -9,7 +9,7 @@ total potential :math:`\Pi(u) = U(u) - \lambda W(u)` with load factor
 
 Example
 -------
->>> from femshell.mesh.generators import disk                      # doctest: +SKIP
+>>> from femshell.mesh.generators import disk
 >>> from femshell.shell import ShellModel, Material, Clamped, uniform_growth
 >>> mesh = disk(radius=10, edge_length=1.0)
 >>> rest = uniform_growth(mesh.points, mesh.triangles, thickness=0.5, strain=0.01)

@@ -24,7 +24,7 @@ Example
 ...     def gradient(self, u): return np.array([u[0]**3 - u[0], u[1]])
 ...     def hessian(self, u): return sp.csr_matrix(np.diag([3*u[0]**2 - 1, 1.0]))
 >>> r = minimize(Quartic(), np.array([0.0, 0.3]), stable=True, log=None)
->>> r.converged, r.stable, abs(round(r.u[0], 6))
+>>> bool(r.converged), bool(r.stable), float(abs(round(r.u[0], 6)))
 (True, True, 1.0)
 """
 
@@ -99,6 +99,7 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     res = np.linalg.norm(g)
     escapes = 0
     tau = None
+    fac = shifted = None  # factorisations kept across iterations: the pattern never changes
     for it in range(max_iter + 1):
         res = np.linalg.norm(g)
         history.append((it, e, res))
@@ -108,7 +109,7 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         K = problem.hessian(u)
         times["assembly"] += time.perf_counter() - t
         t = time.perf_counter()
-        fac = _factorize(K, backend)
+        fac = _factorize(K, backend, fac)
         times["factorize"] += time.perf_counter() - t
         n_neg = fac.inertia[1] if fac.inertia is not None else None
         if res <= rtol * residual_scale + atol:
@@ -139,10 +140,10 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
             u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
         if not ok and n_neg:
             # start near the last shift that worked: saves most of the trial factorisations
-            fac, tau = _shift_to_positive(K, backend, times, max(1e-8, tau / 16) if tau else 1e-6)
+            shifted, tau = _shift_to_positive(K, backend, times, max(1e-8, tau / 16) if tau else 1e-6, shifted)
             if log:
                 log(f"    newton: Hessian has {n_neg} negative eigenvalues; shifted by {tau:.2e}")
-            d = -fac.solve(g)
+            d = -shifted.solve(g)
             u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
         if not ok:
             raise NewtonError(f"line search failed at iteration {it} (|r| = {res:.3e})", _result(
@@ -160,8 +161,11 @@ def _result(u, converged, it, e, res, scale, n_neg, history, times):
                         history, dict(times))
 
 
-def _factorize(K, backend):
+def _factorize(K, backend, previous=None):
+    """LDLᵀ of K; with ``previous`` (same sparsity pattern) its symbolic analysis is reused."""
     try:
+        if previous is not None:
+            return previous.refactor(K)
         return factorize(K, kind="symmetric_indefinite", backend=backend)
     except LinearSolverError as exc:
         raise NewtonError(f"the Hessian could not be factorised: {exc}") from exc
@@ -178,14 +182,15 @@ def _step(problem, u, e, g, d, max_step, times):
     return out
 
 
-def _shift_to_positive(K, backend, times, tau_start=1e-6):
+def _shift_to_positive(K, backend, times, tau_start=1e-6, previous=None):
     """Factorise K + tau D with a tau (growing by 4 from ``tau_start``) that makes it positive definite."""
     D = np.abs(K.diagonal())
     D = np.where(D > 0, D, D.max() if D.max() > 0 else 1.0)
     tau = tau_start
+    fac = previous
     for _ in range(60):
         t = time.perf_counter()
-        fac = _factorize(K + sp.diags(tau * D), backend)
+        fac = _factorize(K + sp.diags(tau * D), backend, fac)
         times["factorize"] += time.perf_counter() - t
         if fac.inertia is None or fac.inertia[1] == 0:
             return fac, tau
