@@ -15,7 +15,7 @@ SOURCE = ("exact (pure bending into a circular arc): theta = 2 pi M/Mmax, -u = L
           "w = L (1 - cos(theta))/theta; Sze, Liu & Lo, Finite Elem. Anal. Des. 40 (2004) 1551")
 
 L, WIDTH, THICK, E, NU = 12.0, 1.0, 0.1, 1.2e6, 0.0
-LEVELS = {"quick": ([0.25], 16), "full": ([0.5, 0.25, 0.125, 0.0625], 32)}
+LEVELS = {"quick": ([0.125], 8), "full": ([0.5, 0.25, 0.125, 0.0625], 32)}
 CHECK = (0.25, 0.5, 0.75, 1.0)  # fractions of Mmax reported
 
 

@@ -15,7 +15,7 @@ SOURCE = "MacNeal & Harder, Finite Elem. Anal. Des. 1 (1985) 3; Belytschko et al
 
 R, LENGTH, T, E, NU, LOAD = 300.0, 600.0, 3.0, 3e6, 0.3, 1.0
 REFERENCE = 1.82488e-5
-LEVELS = {"quick": [25.0, 15.0, 10.0], "full": [40.0, 25.0, 15.0, 10.0, 7.0, 5.0, 3.5, 2.5]}
+LEVELS = {"quick": [15.0, 7.0, 3.0], "full": [40.0, 25.0, 15.0, 10.0, 7.0, 5.0, 3.5, 2.5, 2.0]}
 
 
 def run(level):
