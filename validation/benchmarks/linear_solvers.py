@@ -18,19 +18,23 @@ reference; SuperLU in symmetric mode.
 
 Run:  python3 validation/benchmarks/linear_solvers.py [--sizes 2500 10000 25000] [--superlu-max 30000]
 
-Measured (November 2026, 2 cores under a load average of 6–8 from other jobs, so the
-times are inflated and noisy; rankings as in shared/notes/measured-solvers.md):
+Measured (November 2026, 2 cores shared with other jobs at a load average of 7–10, so
+the times are inflated and noisy; rankings as in shared/notes/measured-solvers.md).
+PARDISO threads follow femshell.solvers.linear: one thread below 2 M stored
+non-zeros (the 2.5k and 10k rows), both cores above (25k); solves on one thread.
 
 | vertices | unknowns | nnz | solver | first [s] | analysis [s] | refactor [s] | solve [s] |
 |---|---|---|---|---|---|---|---|
-| 2 505 | 10 020 | 0.76 M | pardiso spd | 0.87 | 0.39 | 0.50 | 0.09 |
-| | | | pardiso indefinite (matching) | 0.95 | 0.43 | 0.46 | 0.07 |
-| | | | pypardiso default (mtype 11) | 1.13 | | | 0.21 |
-| | | | superlu symmetric mode | 1.64 | | 1.70 | 0.02 |
-| 10 011 | 40 044 | 3.06 M | pardiso spd | 3.11 | 0.88 | 2.28 | 0.16 |
-| | | | pardiso indefinite (matching) | 3.87 | 1.21 | 2.44 | 0.15 |
-| | | | pypardiso default (mtype 11) | 5.71 | | | 0.46 |
-| | | | superlu symmetric mode | 21.9 | | 25.1 | 0.16 |
+| 2 505 | 10 020 | 0.76 M | pardiso spd | 0.53 | 0.16 | 0.27 | 0.015 |
+| | | | pardiso indefinite (matching) | 0.82 | 0.22 | 0.37 | 0.018 |
+| | | | pardiso indefinite (no matching) | 0.46 | 0.10 | 0.26 | 0.019 |
+| | | | pypardiso default (mtype 11) | 1.60 | | | 0.20 |
+| | | | superlu symmetric mode | 2.87 | | 2.07 | 0.020 |
+| 10 011 | 40 044 | 3.06 M | pardiso spd | 3.22 | 0.62 | 2.28 | 0.070 |
+| | | | pardiso indefinite (matching) | 4.03 | 0.99 | 2.22 | 0.098 |
+| | | | pardiso indefinite (no matching) | 3.26 | 0.66 | 2.24 | 0.084 |
+| | | | pypardiso default (mtype 11) | 8.95 | | | 0.92 |
+| | | | superlu symmetric mode (2 threads run) | 21.9 | | 25.1 | 0.16 |
 | 25 007 | 100 028 | 7.63 M | pardiso spd | 9.57 | 1.75 | 8.22 | 0.28 |
 | | | | pardiso indefinite (matching) | 12.05 | 2.39 | 8.48 | 0.26 |
 | | | | pardiso indefinite (no matching) | 9.79 | 1.69 | 6.81 | 0.32 |

@@ -1,0 +1,245 @@
+r"""Contractility, growth stretch and the target fields of the shell (design.md 1.1).
+
+The chemical lowers the contractility Λ of the cells; lower contractility makes the
+cells want more area. With the defaults of the seed paper (Λmax = 15, Λmin = 10,
+b = 100, c* = 0.1)::
+
+    Λ(c) = Λmin + (Λmax − Λmin) · expit(b (c* − c))          [same unit as Λmax, Λmin]
+    s(c) = Λ0 / Λ(c),  Λ0 = Λmax by default                   [dimensionless]
+    ā = s² ā0,   h̄ = h0 / s² ("volume") or h0 ("uniform"),   b̄ = k0 ā
+
+Units (design.md section 3): c is a concentration in the model's own unit (the one in
+which c* and c_max = w Hs / β are given), b is 1/concentration, lengths are in cell
+sizes, ā and ā0 are length², h in length, k0 in 1/length, b̄ in length.
+
+All functions are plain numpy, vectorised over elements or vertices; none of them
+overflows for large |b (c − c*)| (the expit form is used, never exp(b c)).
+
+Example
+-------
+>>> import numpy as np
+>>> from femshell.growth import stretch
+>>> np.round(stretch(np.array([0.0, 0.1, 1.0])), 4)
+array([1. , 1.2, 1.5])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import expit
+
+__all__ = ["contractility", "stretch", "dstretch_dc", "element_average", "target_metric",
+           "target_thickness", "target_curvature", "THICKNESS_MODES"]
+
+THICKNESS_MODES = ("volume", "uniform")
+
+
+def _check_params(lam_max, lam_min, b):
+    if not (np.isfinite(lam_min) and lam_min > 0):
+        raise ValueError(f"lam_min (Λmin) must be a finite number > 0, got {lam_min}")
+    if not (np.isfinite(lam_max) and lam_max >= lam_min):
+        raise ValueError(f"lam_max (Λmax) must be finite and >= lam_min = {lam_min}, got {lam_max}")
+    if not (np.isfinite(b) and b > 0):
+        raise ValueError(f"b (steepness of the contractility switch) must be a finite number > 0, got {b}")
+
+
+def _as_finite(c, name="c"):
+    c = np.asarray(c, dtype=float)
+    bad = ~np.isfinite(c)
+    if bad.any():
+        first = np.unravel_index(np.flatnonzero(bad.ravel())[0], c.shape) if c.ndim else ()
+        raise ValueError(f"{name} has {int(bad.sum())} non-finite value(s) (NaN or inf), first at index "
+                         f"{tuple(int(i) for i in first)}")
+    return c
+
+
+def contractility(c, lam_max: float = 15.0, lam_min: float = 10.0, b: float = 100.0, c_star: float = 0.1):
+    r"""Cell contractility Λ(c) = Λmin + (Λmax − Λmin) · expit(b (c* − c)).
+
+    This equals (Λmax e^{b c*} + Λmin e^{b c}) / (e^{b c*} + e^{b c}) (design.md 1.1)
+    but never overflows: expit(x) = 1 / (1 + e^{−x}) is evaluated stably for any x.
+
+    Parameters
+    ----------
+    c : array_like
+        Concentration (model concentration unit), any shape.
+    lam_max, lam_min : float
+        Contractility of untouched (c ≪ c*) and saturated (c ≫ c*) tissue; 0 < Λmin ≤ Λmax.
+    b : float
+        Steepness of the switch, 1 / concentration unit; > 0.
+    c_star : float
+        Threshold concentration.
+
+    Returns
+    -------
+    ndarray, same shape as ``c``: Λ in the unit of ``lam_max``.
+
+    Example
+    -------
+    >>> float(contractility(0.1))    # at the threshold, halfway
+    12.5
+    """
+    _check_params(lam_max, lam_min, b)
+    c = _as_finite(c)
+    return lam_min + (lam_max - lam_min) * expit(b * (c_star - c))
+
+
+def stretch(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: float = 10.0,
+            b: float = 100.0, c_star: float = 0.1):
+    r"""Linear growth stretch of the rest lengths, s(c) = Λ0 / Λ(c) (dimensionless).
+
+    Λ0 = Λmax by default (the contractility of untouched tissue), so s = 1 for c ≪ c*
+    and s = Λmax / Λmin (1.5 with the defaults) for c ≫ c*.
+
+    Example
+    -------
+    >>> float(stretch(-1e3, b=1000)), float(stretch(1e3, b=1000))
+    (1.0, 1.5)
+    """
+    lam0 = lam_max if lam0 is None else lam0
+    if not (np.isfinite(lam0) and lam0 > 0):
+        raise ValueError(f"lam0 (Λ0, the reference contractility) must be a finite number > 0, got {lam0}")
+    return lam0 / contractility(c, lam_max, lam_min, b, c_star)
+
+
+def dstretch_dc(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: float = 10.0,
+                b: float = 100.0, c_star: float = 0.1):
+    r"""Derivative ds/dc of :func:`stretch` (1 / concentration unit).
+
+    With x = b (c* − c) and σ = expit::
+
+        dΛ/dc = −b (Λmax − Λmin) σ(x) σ(−x),      ds/dc = −Λ0 / Λ² · dΛ/dc  ≥ 0
+
+    σ(x) σ(−x) is the overflow-free form of e^x / (1 + e^x)².
+
+    Example
+    -------
+    >>> float(dstretch_dc(0.1))      # b (Λmax − Λmin) / 4 · Λmax / 12.5² at c = c*
+    12.0
+    """
+    lam0 = lam_max if lam0 is None else lam0
+    if not (np.isfinite(lam0) and lam0 > 0):
+        raise ValueError(f"lam0 (Λ0, the reference contractility) must be a finite number > 0, got {lam0}")
+    lam = contractility(c, lam_max, lam_min, b, c_star)
+    x = b * (c_star - np.asarray(c, dtype=float))
+    dlam = -b * (lam_max - lam_min) * expit(x) * expit(-x)
+    return -lam0 / lam**2 * dlam
+
+
+def element_average(c_vertices, triangles):
+    r"""Mean of the three vertex values of each triangle, c_e = (c_i + c_j + c_k) / 3.
+
+    Parameters
+    ----------
+    c_vertices : (n,) or (n, ...) array
+        Values at the vertices (any unit; the result has the same unit).
+    triangles : (m, 3) int array
+
+    Returns
+    -------
+    (m,) or (m, ...) array.
+
+    Example
+    -------
+    >>> element_average(np.array([0.0, 3.0, 6.0, 9.0]), np.array([[0, 1, 2], [1, 2, 3]]))
+    array([3., 6.])
+    """
+    c = np.asarray(c_vertices, dtype=float)
+    tri = np.asarray(triangles)
+    if tri.ndim != 2 or tri.shape[1] != 3:
+        raise ValueError(f"triangles must have shape (m, 3), got {tri.shape}")
+    if tri.size and (tri.min() < 0 or tri.max() >= len(c)):
+        raise ValueError(f"triangles index vertices 0..{tri.max()} but only {len(c)} vertex values were given")
+    return c[tri].mean(axis=1)
+
+
+def target_metric(rest_metric, s):
+    r"""Target first fundamental form of isotropic growth, ā = s² ā0 (length²).
+
+    Parameters
+    ----------
+    rest_metric : (m, 2, 2) array
+        ā0, the first fundamental form of the rest mesh per element (length²).
+    s : (m,) array or float
+        Linear stretch per element (dimensionless, > 0).
+
+    Example
+    -------
+    >>> target_metric(np.eye(2)[None], np.array([1.5]))[0]
+    array([[2.25, 0.  ],
+           [0.  , 2.25]])
+    """
+    a0 = np.asarray(rest_metric, dtype=float)
+    if a0.ndim != 3 or a0.shape[1:] != (2, 2):
+        raise ValueError(f"rest_metric must have shape (m, 2, 2), got {a0.shape}")
+    s = _check_stretch(s, len(a0))
+    return (s * s)[:, None, None] * a0
+
+
+def target_thickness(h0, s, mode: str = "volume"):
+    r"""Target thickness h̄ (length).
+
+    ``mode="volume"`` (default, volume-conserving growth): h̄ = h0 / s²;
+    ``mode="uniform"``: h̄ = h0.
+
+    Parameters
+    ----------
+    h0 : float or (m,) array
+        Rest thickness (length, > 0).
+    s : float or (m,) array
+        Linear stretch per element (dimensionless, > 0).
+
+    Example
+    -------
+    >>> target_thickness(2.0, np.array([1.0, 2.0]))
+    array([2. , 0.5])
+    >>> target_thickness(2.0, np.array([1.0, 2.0]), mode="uniform")
+    array([2., 2.])
+    """
+    if mode not in THICKNESS_MODES:
+        raise ValueError(f"thickness mode must be one of {THICKNESS_MODES}, got {mode!r}")
+    h0 = np.asarray(h0, dtype=float)
+    if not (np.all(np.isfinite(h0)) and np.all(h0 > 0)):
+        raise ValueError(f"rest thickness h0 must be finite and > 0, got min {np.min(h0)}")
+    s = np.asarray(s, dtype=float)
+    s = _check_stretch(s, s.shape[0] if s.ndim else None)
+    if mode == "volume":
+        return h0 / (s * s)
+    return np.broadcast_to(h0, np.broadcast_shapes(h0.shape, s.shape)).astype(float)
+
+
+def target_curvature(target_metric, k0):
+    r"""Target second fundamental form b̄ = k0 ā (length), i.e. ā⁻¹ b̄ = k0 I.
+
+    Parameters
+    ----------
+    target_metric : (m, 2, 2) array
+        ā per element (length²).
+    k0 : float or (m,) array
+        Natural curvature, 1/length (1/R for a sphere of radius R, 0 for a flat sheet).
+
+    Example
+    -------
+    >>> round(float(target_curvature(np.eye(2)[None] * 4.0, 1 / 30)[0, 0, 0]), 6)
+    0.133333
+    """
+    a = np.asarray(target_metric, dtype=float)
+    if a.ndim != 3 or a.shape[1:] != (2, 2):
+        raise ValueError(f"target_metric must have shape (m, 2, 2), got {a.shape}")
+    k0 = np.asarray(k0, dtype=float)
+    if not np.all(np.isfinite(k0)):
+        raise ValueError("k0 must be finite")
+    if k0.ndim == 0:
+        return float(k0) * a
+    if k0.shape != (len(a),):
+        raise ValueError(f"k0 must be a scalar or have shape ({len(a)},), got {k0.shape}")
+    return k0[:, None, None] * a
+
+
+def _check_stretch(s, m):
+    s = _as_finite(s, "stretch s")
+    if s.ndim > 1 or (m is not None and s.ndim == 1 and len(s) != m):
+        raise ValueError(f"stretch s must be a scalar or have shape ({m},), got {s.shape}")
+    if np.any(s <= 0):
+        raise ValueError(f"stretch s must be > 0, got min {s.min()}")
+    return np.broadcast_to(s, (m,)) if (s.ndim == 0 and m is not None) else s

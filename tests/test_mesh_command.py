@@ -1,0 +1,59 @@
+"""`femshell mesh` on the command line: the foundation issue's acceptance examples."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from femshell.geometry import triangle_area_vectors
+from femshell.mesh import read_mesh
+
+
+def _run(*args):
+    return subprocess.run([sys.executable, "-m", "femshell.cli", *args], capture_output=True, text=True)
+
+
+def test_sphere_command(tmp_path):
+    out = tmp_path / "s.vtu"
+    r = _run("mesh", "sphere", "--radius", "30", "--vertices", "2500", "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    mesh = read_mesh(out)
+    assert abs(mesh.n_vertices - 2500) <= 250
+    assert mesh.topology.is_closed and mesh.topology.euler_characteristic == 2
+    assert len(mesh.topology.inconsistent_edges) == 0
+    # outward: positive enclosed volume, and every normal points away from the centre
+    x = mesh.points[mesh.triangles]
+    assert np.einsum("mi,mi->m", x[:, 0], np.cross(x[:, 1], x[:, 2])).sum() > 0
+    assert (np.einsum("mi,mi->m", triangle_area_vectors(mesh.points, mesh.triangles), x.mean(1)) > 0).all()
+
+
+def test_disk_command_has_inner_circle(tmp_path):
+    out = tmp_path / "d.vtu"
+    r = _run("mesh", "disk", "--radius", "10", "--inner-radius", "3", "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    mesh = read_mesh(out)
+    assert np.ptp(mesh.points[:, 2]) == 0
+    inner = mesh.topology.edges[mesh.topology.boundary_edge_groups["inner"]]
+    radius = np.linalg.norm(mesh.points[inner][..., :2], axis=-1)
+    assert len(inner) >= 12 and np.allclose(radius, 3.0, rtol=1e-9)
+    # a polygon: its segments close up around the origin
+    angles = np.sort(np.arctan2(mesh.points[np.unique(inner), 1], mesh.points[np.unique(inner), 0]))
+    assert np.diff(angles).max() < 2 * np.pi / 12
+
+
+@pytest.mark.parametrize("args, words", [
+    (["mesh", "sphere", "--radius", "-1", "-o", "x.vtu"], "--radius must be > 0"),
+    (["mesh", "sphere", "--radius", "1", "-o", "x.txt"], ".vtu"),
+])
+def test_mesh_command_bad_input(tmp_path, args, words):
+    r = _run(*[a if a != "x.vtu" and a != "x.txt" else str(tmp_path / a) for a in args])
+    assert r.returncode != 0
+    assert words in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_help_lists_every_subcommand():
+    r = _run("--help")
+    for sub in ("mesh", "validate", "run", "scenes"):
+        assert sub in r.stdout
