@@ -1,0 +1,84 @@
+"""Build the documentation: ``python docs/build.py [--out docs/_build]``.
+
+1. the validation report (``validation-report.md``; ``--update-report`` also refreshes the
+   committed ``docs/validation-report.md``), made from the full-level
+   results in ``validation/results/*.json`` (``femshell validate NAME --level full
+   --out validation/results``): one table per case with every row;
+2. the API reference from the docstrings, as HTML, with pdoc;
+3. the markdown pages (theory, tutorials, report, accuracy and cost) copied beside it,
+   with an index.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parent
+ROOT = DOCS.parent
+PAGES = ["theory.md", "tutorial-buckling.md", "tutorial-mechanochemistry.md", "tutorial-convergence.md",
+         "validation-report.md", "accuracy-and-cost.md"]
+
+
+def _fmt(v, spec=".4g"):
+    return "" if v is None else (f"{v:{spec}}" if isinstance(v, float) else str(v))
+
+
+def validation_report(results: Path = ROOT / "validation" / "results") -> str:
+    """Markdown tables of every validation JSON in ``results``."""
+    lines = ["# Validation report", "",
+             "Made by `python docs/build.py` from `validation/results/*.json`, the output of",
+             "`femshell validate NAME --level full --out validation/results`. Each row compares femshell with",
+             "an independent reference; `passed` is empty where a row is reported without a tolerance.", ""]
+    files = sorted(results.glob("*.json"))
+    if not files:
+        lines.append("No results yet: run `femshell validate all --level full --out validation/results`.")
+    for f in files:
+        doc = json.loads(f.read_text())
+        ok = all(r["passed"] for r in doc["rows"] if r["tolerance"] is not None)
+        lines += [f"## {doc['case']} ({doc['level']}): {'passed' if ok else 'FAILED'}", "",
+                  doc.get("description", ""), "", f"Reference: {doc['source']}", ""]
+        png = f.with_suffix(".png")
+        if png.exists():
+            lines += [f"![{doc['case']}](../validation/results/{png.name})", ""]
+        lines += ["| quantity | value | reference | rel. error | tolerance | passed | vertices | wall [s] |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in doc["rows"]:
+            lines.append(f"| {r['quantity']} | {_fmt(r['value'])} | {_fmt(r['reference'])} | "
+                         f"{_fmt(r['rel_error'], '.2e')} | {_fmt(r['tolerance'], '.0e')} | "
+                         f"{'' if r['passed'] is None else ('yes' if r['passed'] else 'NO')} | "
+                         f"{r['n_vertices'] or ''} | {r['wall_s']:.2f} |")
+        lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+def build(out: Path) -> Path:
+    import pdoc
+
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "validation-report.md").write_text(validation_report())
+    pdoc.render.configure(docformat="numpy", math=True, footer_text="femshell")
+    pdoc.pdoc("femshell", "!femshell.validation.framework", output_directory=out / "api")
+    index = ["# femshell documentation", "", "- [API reference](api/femshell.html)"]
+    for page in PAGES:
+        src = DOCS / page
+        if src.exists() and page != "validation-report.md":
+            shutil.copy(src, out / page)
+            index.append(f"- [{page[:-3].replace('-', ' ')}]({page})")
+    if (DOCS / "images").exists():
+        shutil.copytree(DOCS / "images", out / "images", dirs_exist_ok=True)
+    (out / "index.md").write_text("\n".join(index) + "\n")
+    return out
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description="Build femshell's documentation.")
+    ap.add_argument("--out", type=Path, default=DOCS / "_build")
+    ap.add_argument("--update-report", action="store_true",
+                    help="also rewrite docs/validation-report.md (the committed copy) from validation/results")
+    args = ap.parse_args()
+    if args.update_report:
+        (DOCS / "validation-report.md").write_text(validation_report())
+    print(f"documentation in {build(args.out)}")

@@ -1,0 +1,21 @@
+"""The documentation builds with one command (docs/build.py) and covers every module."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_docs_build(tmp_path):
+    pytest.importorskip("pdoc")
+    r = subprocess.run([sys.executable, str(ROOT / "docs" / "build.py"), "--out", str(tmp_path)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    api = tmp_path / "api" / "femshell"
+    for module in ("mesh", "shell", "solvers", "geometry", "growth", "chemistry"):
+        assert (api / f"{module}.html").exists() or (api / module).is_dir(), module
+    assert (tmp_path / "theory.md").exists()
+    assert (tmp_path / "validation-report.md").read_text().startswith("# Validation report")
