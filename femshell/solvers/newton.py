@@ -11,7 +11,9 @@ The solver knows a *problem*: any object with ``energy(u)``, ``gradient(u)`` and
    it is positive definite (a Levenberg–Marquardt step: always a descent direction);
 3. backtracking line search on :math:`\Pi` (Armijo), falling back to the residual
    norm when energy differences reach round-off;
-4. converged when :math:`\|\nabla\Pi\| \le` ``rtol`` × scale + ``atol``;
+4. converged when :math:`\|\nabla\Pi\| \le` ``rtol`` × scale + ``atol``, or when the
+   Newton step's predicted decrease of Π falls below float64 resolution of Π (the
+   residual's round-off floor: nothing can be gained by iterating);
 5. with ``stable=True`` a converged point whose Hessian has negative eigenvalues is
    a saddle: step along the eigenvector of the most negative eigenvalue (the sign
    that lowers Π) and continue, so the result is a local minimum.
@@ -98,6 +100,8 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     n_neg = None
     res = np.linalg.norm(g)
     escapes = 0
+    e_start = e
+    roundoff_floor = False
     tau = None
     fac = shifted = None  # factorisations kept across iterations: the pattern never changes
     for it in range(max_iter + 1):
@@ -146,9 +150,16 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
             d = -shifted.solve(g)
             u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
         if not ok:
+            # no step lowers Π when the predicted decrease is below what float64 can resolve
+            # in Π: the residual has reached its round-off floor, which is as converged as it gets
+            if abs(g @ d) <= 1e-13 * max(abs(e), abs(e_start), 1e-300):
+                roundoff_floor = True
+                if log:
+                    log(f"    newton: stopped at the round-off floor, |r| = {res:.3e}")
+                break
             raise NewtonError(f"line search failed at iteration {it} (|r| = {res:.3e})", _result(
                 u, False, it, e, res, residual_scale, n_neg, history, times))
-    converged = res <= rtol * residual_scale + atol
+    converged = roundoff_floor or res <= rtol * residual_scale + atol
     out = _result(u, converged, it, e, res, residual_scale, n_neg, history, times)
     if not converged:
         raise NewtonError(f"Newton did not converge in {max_iter} iterations: |r| = {res:.3e} > "
