@@ -1,0 +1,126 @@
+"""femshell.linear_buckling: the scikit-fem planar reference (prestress + Morley buckling)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from femshell import linear_buckling as lb
+from femshell.mesh import generators
+
+NU = 0.3
+
+
+@pytest.fixture(scope="module")
+def disk():
+    m = generators.disk(1.0, n_vertices=2000)
+    return np.asarray(m.points)[:, :2], np.asarray(m.triangles)
+
+
+@pytest.fixture(scope="module")
+def clamped_disk_modes(disk):
+    p, t = disk
+    th, g = 0.02, 1e-4
+    N = lb.membrane_prestress(p, t, g, nu=NU, thickness=th, boundary="clamped")
+    res = lb.buckling_loads(p, t, N, nu=NU, thickness=th, bc="clamped", k=5)
+    k2 = res.mu * g * 12 * (1 + NU) / th ** 2   # g_c = k^2 t^2 / (12 (1 + nu) a^2)
+    return res, k2
+
+
+def test_uniform_growth_clamped_prestress_is_exact(disk):
+    p, t = disk
+    E, th, g = 2.0, 0.1, 0.01
+    thick = np.full(len(t), th)
+    N = lb.membrane_prestress(p, t, g, E=E, nu=NU, thickness=thick, boundary="clamped")
+    N0 = -E * th * g / (1 - NU)
+    np.testing.assert_allclose(N[:, :2], N0, rtol=1e-10)
+    assert np.abs(N[:, 2]).max() < 1e-10 * abs(N0)
+    # P1 reproduces the constant field as well
+    N1 = lb.membrane_prestress(p, t, g, E=E, nu=NU, thickness=th, boundary="clamped", order=1)
+    np.testing.assert_allclose(N1[:, :2], N0, rtol=1e-10)
+
+
+def test_uniform_growth_free_disk_is_stress_free(disk):
+    p, t = disk
+    N = lb.membrane_prestress(p, t, 0.01, nu=NU, thickness=0.1, boundary="free")
+    assert np.abs(N).max() < 1e-10 * 0.1 * 0.01
+
+
+def test_clamped_disk_first_load_within_one_percent(clamped_disk_modes):
+    _, k2 = clamped_disk_modes
+    assert k2[0] == pytest.approx(14.682, rel=1e-2)
+    assert k2[1] == pytest.approx(26.375, rel=1e-2)
+    assert k2[3] == pytest.approx(40.707, rel=1e-2)
+
+
+def test_clamped_disk_mode_numbers(clamped_disk_modes):
+    res, _ = clamped_disk_modes
+    ns, wls, _ = lb.mode_wavenumber(res, None, radii=[0.3, 0.5, 0.7])
+    assert ns[:5] == [0, 1, 1, 2, 2]
+    assert math.isinf(wls[0])
+
+
+def test_simply_supported_square_k4():
+    m = generators.plate(1.0, 1.0, n_vertices=1200)
+    p, t = np.asarray(m.points)[:, :2], np.asarray(m.triangles)
+    res = lb.buckling_loads(p, t, (-1.0, 0.0, 0.0), nu=NU, D=1.0, bc="simply_supported", k=1)
+    assert res.mu[0] / math.pi ** 2 == pytest.approx(4.0, rel=2e-2)
+
+
+def test_tension_has_no_positive_load_factor():
+    m = generators.plate(1.0, 1.0, n_vertices=300)
+    p, t = np.asarray(m.points)[:, :2], np.asarray(m.triangles)
+    res = lb.buckling_loads(p, t, (1.0, 1.0, 0.0), nu=NU, D=1.0, bc="simply_supported", k=3)
+    assert len(res.mu) == 0
+    # uniaxial compression along y = the x case turned by 90 degrees on a square
+    ry = lb.buckling_loads(p, t, (0.0, -1.0, 0.0), nu=NU, D=1.0, bc="simply_supported", k=1)
+    rx = lb.buckling_loads(p, t, (-1.0, 0.0, 0.0), nu=NU, D=1.0, bc="simply_supported", k=1)
+    assert ry.mu[0] == pytest.approx(rx.mu[0], rel=2e-2)
+
+
+def test_free_disk_with_grown_centre_rigid_modes_removed():
+    m = generators.disk(4.0, edge_length=0.5, inner_radius=1.0, inner_edge_length=0.15)
+    p, t = np.asarray(m.points)[:, :2], np.asarray(m.triangles)
+    cen = p[t].mean(1)
+    inside = np.hypot(cen[:, 0], cen[:, 1]) < 1.0
+    th = np.where(inside, 0.1, 0.2)
+    N = lb.membrane_prestress(p, t, np.where(inside, 0.01, 0.0), nu=0.5, thickness=th, boundary="free")
+    assert N[inside, 0].mean() < 0 and N[inside, 1].mean() < 0          # grown centre is compressed
+    res = lb.buckling_loads(p, t, N, nu=0.5, thickness=th, bc="free", k=3)
+    assert np.all(res.mu > 0) and np.all(np.diff(res.mu) >= 0)
+    assert res.info["rigid_leak"] < 1e-6          # K_g (almost) annihilates w = a + bx + cy
+    # the returned modes have no rigid part: L2-orthogonal to 1, x, y
+    basis = res.basis
+    w = np.asarray(basis.interpolate(res.modes[:, 0]))    # (elements, quadrature points)
+    x, y = np.asarray(basis.global_coordinates())
+    dx = basis.dx
+
+    def inner(a, b):
+        return float(np.sum(a * b * dx))
+
+    for f in (np.ones_like(x), x, y):
+        assert abs(inner(f, w)) < 1e-8 * math.sqrt(inner(f, f) * inner(w, w))
+    ns, _, _ = lb.mode_wavenumber(res, None, radii=[0.5, 1.0, 1.5])
+    assert ns[0] == 0                             # the grown centre bulges as a dome first
+
+
+def test_azimuthal_wavenumber_synthetic():
+    rng = np.random.default_rng(1)
+    th = np.sort(rng.uniform(0, 2 * np.pi, 400))             # non-uniform angles
+    r = 2.0
+    pts = np.column_stack([r * np.cos(th), r * np.sin(th)]) + [1.0, -0.5]
+    w = 0.2 + np.cos(5 * th + 0.3) + 0.3 * np.cos(2 * th)
+    n, wl = lb.azimuthal_wavenumber(pts, w, r, center=(1.0, -0.5))
+    assert n == 5 and wl == pytest.approx(2 * np.pi * r / 5)
+    n0, wl0 = lb.azimuthal_wavenumber(pts, np.ones_like(th), center=(1.0, -0.5))
+    assert n0 == 0 and math.isinf(wl0)
+
+
+def test_bad_input_is_rejected(disk):
+    p, t = disk
+    with pytest.raises(ValueError, match="N must have shape"):
+        lb.buckling_loads(p, t, np.zeros((3, 3)), bc="clamped")
+    with pytest.raises(ValueError, match="bc must be"):
+        lb.buckling_loads(p, t, (-1.0, -1.0, 0.0), bc="hinged")
+    with pytest.raises(ValueError, match="thickness"):
+        lb.membrane_prestress(p, t, 0.01, thickness=np.ones(5))
