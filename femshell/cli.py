@@ -29,7 +29,8 @@ def _parser():
                     "  mesh      generate a mesh (sphere, disk, plate, strip, annulus, cylinder, hemisphere)\n"
                     "  validate  run a validation case against theory or a benchmark\n"
                     "  run       run a scene (a .toml file or an embedded scene name)\n"
-                    "  scenes    list the embedded scenes",
+                    "  scenes    list the embedded scenes\n"
+                    "  render    pictures and a movie of a finished run",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
@@ -60,14 +61,50 @@ def _parser():
     v.add_argument("--level", choices=("quick", "full"), default="quick")
     v.add_argument("--out", default="validation-out", help="output directory (default: validation-out)")
 
-    r = sub.add_parser("run", help="run a scene (TOML file or embedded scene name)",
-                       description="Run a scene; writes a time series, summary.json and pictures into --out.")
-    r.add_argument("scene", help="a .toml file or the name of an embedded scene (see `femshell scenes`)")
+    r = sub.add_parser(
+        "run", help="run a scene (TOML file or embedded scene name)",
+        description="Run a scene; writes into --out a ParaView time series (series.pvd + VTU frames), "
+                    "summary.json, pictures/, scene.toml (the scene as run) and checkpoint.npz.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+               "  femshell run default                         the README's scene, into ./default-out\n"
+               "  femshell run my.toml --out runs/a --dry-run  show what would be built, compute nothing\n"
+               "  femshell run sphere-spots --set mesh.n_vertices=2000 --set solver.t_final=5\n"
+               "  femshell run sphere-spots --out runs/b --resume   continue after Ctrl-C or a kill\n\n"
+               "--set KEY=VALUE overrides one scene key (section.key; VALUE is TOML, or a bare word taken as a\n"
+               "string; boundary.0.curve=left reaches into lists). Setting mesh.n_vertices drops the file's\n"
+               "mesh.edge_length and vice versa. `femshell scenes NAME` prints an embedded scene to start from.\n\n"
+               "An --out that holds a run is never overwritten silently: give --resume (continue it) or\n"
+               "--overwrite (delete femshell's files there first). Ctrl-C stops after a checkpoint.\n"
+               "exit codes: 0 done (or paused by --max-steps), 1 a step failed, 2 bad input, 130 interrupted")
+    r.add_argument("scene", nargs="?", help="a .toml file or the name of an embedded scene (see `femshell scenes`); "
+                                            "may be left out with --resume (the scene in --out is used)")
     r.add_argument("--out", help="output directory (default: ./NAME-out)")
     r.add_argument("--resume", action="store_true", help="continue from the last checkpoint in --out")
+    r.add_argument("--overwrite", action="store_true", help="replace a run that --out already holds")
     r.add_argument("--dry-run", action="store_true", help="print what the scene will build, compute nothing")
+    r.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key, e.g. --set mesh.n_vertices=500 (repeatable)")
+    r.add_argument("--max-steps", type=int, metavar="N",
+                   help="stop after N steps in this invocation (checkpointed; continue with --resume)")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    r.add_argument("-v", "--verbose", action="store_true", help="also print step cuts and solver details")
 
-    sub.add_parser("scenes", help="list the embedded scenes, one line each")
+    sc = sub.add_parser("scenes", help="list the embedded scenes, one line each; `scenes NAME` prints one",
+                        description="List the embedded scenes; with a NAME, print that scene's TOML file "
+                                    "(a starting point for your own: femshell scenes default > my.toml).")
+    sc.add_argument("name", nargs="?", help="print this embedded scene")
+
+    d = sub.add_parser("render", help="pictures and a movie of a finished run directory",
+                       description="Render DIR's time series: a top view per frame (pictures/top_NNNNNN.png, one "
+                                   "colour range for all frames), a side view of the last frame "
+                                   "(pictures/side_last.png) and DIR/movie.gif.")
+    d.add_argument("dir", help="a run directory (written by femshell run)")
+    d.add_argument("--field", help="field to colour by (default c, else the first scalar field)")
+    d.add_argument("--every", type=int, default=1, help="render every N-th frame (the last one always)")
+    d.add_argument("--fps", type=_positive("--fps"), default=5.0, help="movie frames per second")
+    d.add_argument("--cmap", default="viridis", help="matplotlib colour map")
+    d.add_argument("--no-movie", action="store_true", help="pictures only")
     return p
 
 
@@ -136,14 +173,40 @@ def _cmd_validate(args):
 def _cmd_run(args):
     from .scene import run_scene
 
-    return run_scene(args.scene, out=args.out, resume=args.resume, dry_run=args.dry_run)
+    return run_scene(args.scene, out=args.out, resume=args.resume, dry_run=args.dry_run,
+                     overwrite=args.overwrite, overrides=args.overrides, max_steps=args.max_steps,
+                     quiet=args.quiet, verbose=args.verbose)
 
 
 def _cmd_scenes(args):
-    from .scene import list_scenes
+    from .scene import embedded_scene_path, list_scenes
 
-    for name, desc in list_scenes().items():
+    scenes = list_scenes()
+    if args.name:
+        p = embedded_scene_path(args.name)
+        if p is None:
+            raise ValueError(f"no embedded scene '{args.name}' (embedded: {', '.join(scenes)})")
+        sys.stdout.write(p.read_text(encoding="utf-8"))
+        return 0
+    for name, desc in scenes.items():
         print(f"{name:<28} {desc}")
+    return 0
+
+
+def _cmd_render(args):
+    from pathlib import Path
+
+    from .viz import render_run
+
+    if args.every < 1:
+        raise ValueError(f"--every must be >= 1, got {args.every}")
+    t0 = time.perf_counter()
+    paths = render_run(args.dir, field=args.field, every=args.every, movie=not args.no_movie, fps=args.fps,
+                       cmap=args.cmap)
+    tops = [p for p in paths if Path(p).name.startswith("top_")]
+    others = [p for p in paths if not Path(p).name.startswith("top_")]
+    print(f"rendered {len(tops)} top view(s) in {Path(args.dir) / 'pictures'}/ and {', '.join(map(str, others))} "
+          f"in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -153,14 +216,20 @@ def main(argv=None):
     if args.command is None:
         parser.print_help()
         return 0
-    handler = {"mesh": _cmd_mesh, "validate": _cmd_validate, "run": _cmd_run, "scenes": _cmd_scenes}[args.command]
+    handler = {"mesh": _cmd_mesh, "validate": _cmd_validate, "run": _cmd_run, "scenes": _cmd_scenes,
+               "render": _cmd_render}[args.command]
     try:
         return handler(args) or 0
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
     except (ValueError, FileNotFoundError) as exc:  # bad input: a clear message, no traceback
-        print(f"femshell {args.command}: error: {exc}", file=sys.stderr)
+        lines = str(exc).splitlines() or [type(exc).__name__]
+        if type(exc).__name__ == "SceneError":      # one problem per line, each with the prefix
+            for line in lines:
+                print(f"femshell {args.command}: error: {line}", file=sys.stderr)
+        else:
+            print(f"femshell {args.command}: error: " + "\n".join(lines), file=sys.stderr)
         return 2
 
 

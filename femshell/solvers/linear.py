@@ -65,9 +65,20 @@ from __future__ import annotations
 
 import copy
 import ctypes
+import os
 import time
 import warnings
 import weakref
+
+# Bit-for-bit repeatable runs (a run resumed from a checkpoint must equal the uninterrupted
+# one): the same PARDISO factorisation differed in the last bits between processes (measured:
+# after another factorisation, or after JAX had run first) because (1) MKL picks SIMD code
+# paths by the memory alignment of its inputs and (2) its OpenMP layer behaves differently
+# with the process's history even at one thread. Strict conditional numerical reproducibility
+# and the sequential threading layer remove both. Must be set before MKL is loaded; set either
+# variable in the environment to override.
+os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
+os.environ.setdefault("MKL_THREADING_LAYER", "SEQUENTIAL")
 
 import numpy as np
 import scipy.sparse as sp
@@ -785,7 +796,10 @@ def smallest_eigenvalues(K, k: int = 6, M=None, *, shift: float | None = None, r
             fac = factorize(K - sigma * Mop, kind="symmetric_indefinite", backend=backend, reuse=fac,
                             allow_singular=True)
             opinv = spla.LinearOperator((n, n), matvec=fac.solve, matmat=fac.solve, dtype=float)
-            w, v = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=opinv, tol=tol)
+            # a fixed start vector: ARPACK's default is random, which made saddle escapes (and so
+            # whole runs) differ from one execution to the next
+            v0 = np.random.default_rng(0).standard_normal(n)
+            w, v = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=opinv, tol=tol, v0=v0)
             order = np.argsort(w)
             w, v = w[order], v[:, order]
             below = None if fac.inertia is None else fac.inertia[1]

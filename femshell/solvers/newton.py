@@ -250,9 +250,10 @@ def _escape_saddle(problem, u, e, K, log):
     raise NewtonError(f"at a saddle (eigenvalue {lam[0]:.3e}) but no step along its mode lowers the energy")
 
 
-def follow_load(problem, u0, factors, *, max_cuts=8, callback=None, log=print, **newton_options):
+def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, log=print, **newton_options):
     """Equilibria along increasing load factors, each warm-started from the previous one.
 
+    ``u0`` is the equilibrium at load factor ``start`` (0: the unloaded state).
     ``problem.load_factor`` is set to each value of ``factors`` in turn. A step
     whose Newton solve fails is cut in half (up to ``max_cuts`` times) and retried
     from the last converged state; after that a :class:`NewtonError` carries the
@@ -261,7 +262,8 @@ def follow_load(problem, u0, factors, *, max_cuts=8, callback=None, log=print, *
     Returns the list of :class:`NewtonResult` at the requested factors.
     """
     u = np.array(u0, float)
-    current = getattr(problem, "load_factor", 0.0) if len(factors) and factors[0] != 0 else 0.0
+    current = float(start)
+    last = None  # the last converged NewtonResult, handed back with a failure
     previous = None  # (load factor, state) of the converged step before, for the secant predictor
     out = []
     for target in factors:
@@ -283,14 +285,17 @@ def follow_load(problem, u0, factors, *, max_cuts=8, callback=None, log=print, *
                 cuts += 1
                 if cuts > max_cuts:
                     problem.load_factor = current
-                    raise NewtonError(f"load step to {trial:.6g} failed after {max_cuts} cuts: {exc}",
-                                      _result(u, False, 0, problem.energy(u), float("nan"), 1.0, None, [], {}))
+                    if last is None:  # nothing converged yet: describe u0 as it is
+                        g = problem.gradient(u)
+                        last = _result(u, False, 0, problem.energy(u), float(np.linalg.norm(g)), 1.0, None, [], {})
+                    raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed after {max_cuts} cuts "
+                                      f"(last converged load factor {current:.6g}): {exc}", last)
                 step *= 0.5
                 if log:
                     log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
                 continue
             previous = (current, u)
-            u, current = res.u, trial
+            u, current, last = res.u, trial, res
             if hasattr(problem, "accept"):
                 problem.accept(u)
             if abs(current - target) <= 1e-14 * max(1.0, abs(target)):

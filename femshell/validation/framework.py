@@ -25,6 +25,9 @@ CASES = {
     "euler-strip": "euler_strip",
     "laplace-beltrami-sphere": "laplace_beltrami_sphere",
     "curvature": "curvature",
+    "thin-shell-locking": "thin_shell_locking",
+    "poor-meshes": "poor_meshes",
+    "extremes": "extremes",
 }
 LEVELS = ("quick", "full")
 

@@ -1,0 +1,454 @@
+r"""Pattern measures of the seed paper (design.md 1.5) and wrinkle counts (design.md 1.6).
+
+Plain functions over arrays: ``points`` (n, 3), ``triangles`` (m, 3), vertex fields (n,).
+Lengths and areas are in the units of ``points`` (cell sizes, design.md section 3);
+angles in radians. Nothing here knows the shell or the time loop.
+
+**Spots.** The tissue is "patterned" where the contractility is low, Λ(c) below the
+midpoint (Λmax + Λmin)/2, i.e. where c > c*. With c interpolated linearly on each
+triangle (P1), the region {c > c*} is cut exactly out of every triangle (marching
+triangles), so its area ``A_l`` and its perimeter do not depend on a lumping rule.
+Its connected components (vertices with c > c*, joined by mesh edges; a triangle
+with any such vertex belongs to their component) are the paper's spots; components
+smaller than ``min_area`` are ignored. With ``N_sp`` the number of components and
+``A_tot`` the surface area (paper, section 3):
+
+.. math::  r_{spot} = \sqrt{A_l / (\pi N_{sp})}, \qquad
+           d_{spacing} = 2 \left(\sqrt{A_{tot} / (\pi N_{sp})} - \sqrt{A_l / (\pi N_{sp})}\right)
+
+**Ridges.** A component is labelled ``"ridge"`` when it is elongated: the aspect
+ratio sqrt(λ1/λ2) of the area-weighted second moment of its triangles projected on
+its mean tangent plane exceeds ``ridge_aspect`` (default 2.5), or its isoperimetric
+ratio P²/(4π A) (1 for a disk; 1.5 for a 3:1 ellipse; large for closed or curved
+bands, whose mean tangent plane is meaningless) exceeds ``ridge_isoperimetric``
+(default 2.0). Otherwise it is a ``"spot"``. N_sp counts both kinds, as the paper's
+N_sp counts connected regions.
+
+Example
+-------
+>>> import numpy as np
+>>> from femshell.mesh.generators import sphere                         # doctest: +SKIP
+>>> m = sphere(10.0, n_vertices=2000)                                     # doctest: +SKIP
+>>> c = np.exp(-np.sum((m.points - [0, 0, 10]) ** 2, axis=1) / 4)         # doctest: +SKIP
+>>> find_spots(m.points, m.triangles, c, c_star=0.1).n_spots              # doctest: +SKIP
+1
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+__all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeasures", "find_spots",
+           "count_spots", "polar_profile", "PolarProfile", "azimuthal_spectrum", "count_wrinkles"]
+
+
+def _mesh(points, triangles):
+    pts = np.asarray(points, dtype=float)
+    tri = np.asarray(triangles)
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
+    if pts.shape[1] == 2:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and not np.issubdtype(tri.dtype, np.integer)):
+        raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}")
+    if tri.size and (tri.min() < 0 or tri.max() >= len(pts)):
+        raise ValueError(f"triangles index vertex {tri.max()} but there are only {len(pts)} points")
+    return pts, tri.astype(np.int64)
+
+
+def _field(values, n, name="values"):
+    v = np.asarray(values, dtype=float)
+    if v.shape != (n,):
+        raise ValueError(f"{name} must have one value per vertex, shape ({n},), got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} holds {int((~np.isfinite(v)).sum())} non-finite value(s)")
+    return v
+
+
+def _triangle_areas(pts, tri):
+    x = pts[tri]
+    return 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
+
+
+def vertex_areas(points, triangles) -> np.ndarray:
+    """Lumped vertex areas, one third of the adjacent triangle areas (length²), shape (n,)."""
+    pts, tri = _mesh(points, triangles)
+    return np.bincount(tri.ravel(), weights=np.repeat(_triangle_areas(pts, tri) / 3.0, 3), minlength=len(pts))
+
+
+def spot_radius(area_low: float, n_spots: int) -> float:
+    r"""Mean spot radius √(A_l / (π N_sp)) (length); NaN when there is no spot.
+
+    >>> round(spot_radius(3 * math.pi * 4.0, 3), 12)      # three disks of radius 2
+    2.0
+    """
+    if n_spots <= 0:
+        return float("nan")
+    if area_low < 0:
+        raise ValueError(f"area_low must be >= 0, got {area_low}")
+    return math.sqrt(area_low / (math.pi * n_spots))
+
+
+def spot_spacing(area_total: float, area_low: float, n_spots: int) -> float:
+    r"""Mean spacing between spot edges 2 (√(A_tot/(π N_sp)) − √(A_l/(π N_sp))) (length); NaN without spots.
+
+    Each spot is given an equal share A_tot/N_sp of the surface as a disk; the spacing
+    is twice the width of the unpatterned ring around the spot.
+
+    >>> round(spot_spacing(4 * math.pi * 9.0, 4 * math.pi * 4.0, 4), 12)   # shares of radius 3, spots of 2
+    2.0
+    """
+    if n_spots <= 0:
+        return float("nan")
+    if not (0 <= area_low <= area_total * (1 + 1e-12)):
+        raise ValueError(f"need 0 <= area_low <= area_total, got {area_low} and {area_total}")
+    return 2.0 * (math.sqrt(area_total / (math.pi * n_spots)) - math.sqrt(area_low / (math.pi * n_spots)))
+
+
+# ----------------------------------------------------------------------------- marching triangles
+
+def _cut_triangles(pts, tri, f):
+    """Area of {f > 0} in each triangle for the P1 interpolant of f, and the length of its level line.
+
+    Returns (area_in (m,), contour_length (m,)).
+    """
+    v = f[tri]                                   # (m, 3)
+    x = pts[tri]                                 # (m, 3, 3)
+    area = _triangle_areas(pts, tri)
+    pos = v > 0
+    npos = pos.sum(axis=1)
+    frac = np.where(npos == 3, 1.0, 0.0)
+    length = np.zeros(len(tri))
+    for k_pos in (1, 2):
+        rows = np.flatnonzero(npos == k_pos)
+        if rows.size == 0:
+            continue
+        # the odd vertex out: the positive one when one is positive, the negative one when two are
+        odd = np.argmax(pos[rows] if k_pos == 1 else ~pos[rows], axis=1)
+        i = odd
+        j = (odd + 1) % 3
+        k = (odd + 2) % 3
+        vi, vj, vk = v[rows, i], v[rows, j], v[rows, k]
+        # crossing points on edges i-j and i-k: t = vi / (vi - vj) from vertex i
+        tij = vi / (vi - vj)
+        tik = vi / (vi - vk)
+        corner = tij * tik                        # area fraction of the small triangle at i
+        frac[rows] = corner if k_pos == 1 else 1.0 - corner
+        xi, xj, xk = x[rows, i], x[rows, j], x[rows, k]
+        pij = xi + tij[:, None] * (xj - xi)
+        pik = xi + tik[:, None] * (xk - xi)
+        length[rows] = np.linalg.norm(pij - pik, axis=1)
+    return frac * area, length
+
+
+def _vertex_graph(tri, n, keep):
+    """Adjacency (CSR) of the mesh edges whose both ends are kept."""
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    e = e[keep[e[:, 0]] & keep[e[:, 1]]]
+    data = np.ones(len(e))
+    return sp.coo_matrix((data, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+
+
+@dataclass
+class Region:
+    """One connected region where c > c* (a spot or a ridge).
+
+    ``area`` and ``perimeter`` are exact for the P1 interpolant (length², length);
+    ``centroid`` (3,) is the area-weighted centre of its (partial) triangles;
+    ``aspect`` = √(λ1/λ2) of the second moment in its mean tangent plane (1 for a disk);
+    ``isoperimetric`` = perimeter² / (4π area) (1 for a disk); ``kind`` "spot" or "ridge".
+    """
+
+    vertices: np.ndarray
+    area: float
+    perimeter: float
+    centroid: np.ndarray
+    aspect: float
+    isoperimetric: float
+    kind: str
+    c_max: float
+
+
+@dataclass
+class PatternMeasures:
+    """The paper's pattern measures (design.md 1.5) of one field c on one surface.
+
+    ``n_spots`` is N_sp, the number of connected low-Λ regions of both kinds;
+    ``n_ridges`` how many of them are elongated ("ridge"); ``spot_radius`` and
+    ``spacing`` follow the paper's formulas with N_sp (NaN when N_sp = 0);
+    ``fraction_patterned`` = A_l / A_tot. Areas in length², lengths in length.
+    """
+
+    n_spots: int
+    n_ridges: int
+    area_low: float
+    area_total: float
+    fraction_patterned: float
+    spot_radius: float
+    spacing: float
+    regions: list = field(default_factory=list)
+    ignored_regions: int = 0
+
+    @property
+    def kind(self) -> str:
+        """"none", "spots", "ridges" or "mixed" (both kinds present)."""
+        if self.n_spots == 0:
+            return "none"
+        if self.n_ridges == 0:
+            return "spots"
+        return "ridges" if self.n_ridges == self.n_spots else "mixed"
+
+    def as_dict(self) -> dict:
+        """JSON-friendly summary (no arrays; NaN radius/spacing become None)."""
+        def num(x):
+            return None if not math.isfinite(x) else float(x)
+        return {"n_spots": self.n_spots, "n_ridges": self.n_ridges, "kind": self.kind,
+                "area_low": float(self.area_low), "area_total": float(self.area_total),
+                "fraction_patterned": float(self.fraction_patterned), "spot_radius": num(self.spot_radius),
+                "spacing": num(self.spacing), "ignored_regions": self.ignored_regions,
+                "regions": [{"area": r.area, "perimeter": r.perimeter, "aspect": r.aspect,
+                             "isoperimetric": r.isoperimetric, "kind": r.kind, "c_max": r.c_max,
+                             "centroid": [float(v) for v in r.centroid], "n_vertices": int(len(r.vertices))}
+                            for r in self.regions]}
+
+
+def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = None,
+               ridge_aspect: float = 2.5, ridge_isoperimetric: float = 2.0) -> PatternMeasures:
+    """Connected regions of {c > c*} and the paper's measures (see module docstring).
+
+    Parameters
+    ----------
+    points : (n, 3) array
+        The surface on which areas are measured (the current, deformed one for a run).
+    triangles : (m, 3) int array
+    c : (n,) array
+        Concentration at the vertices.
+    c_star : float
+        Threshold: low contractility where c > c*.
+    min_area : float, optional
+        Regions smaller than this (length²) are ignored and counted in
+        ``ignored_regions``; their area is left out of A_l too. Default: twice the
+        median triangle area (one vertex barely over the threshold is not a spot).
+    ridge_aspect, ridge_isoperimetric : float
+        Thresholds of the ridge classification.
+    """
+    pts, tri = _mesh(points, triangles)
+    n = len(pts)
+    cv = _field(c, n, "c")
+    if not math.isfinite(c_star):
+        raise ValueError(f"c_star must be finite, got {c_star}")
+    tri_area = _triangle_areas(pts, tri)
+    area_total = float(tri_area.sum())
+    if min_area is None:
+        min_area = 2.0 * float(np.median(tri_area)) if len(tri) else 0.0
+    f = cv - c_star
+    above = f > 0
+    area_in, contour = _cut_triangles(pts, tri, f)
+    if not above.any():
+        return PatternMeasures(0, 0, 0.0, area_total, 0.0, float("nan"), float("nan"), [], 0)
+    n_comp, label = connected_components(_vertex_graph(tri, n, above), directed=False)
+    # component of each triangle: that of any of its vertices above the threshold
+    vt = np.where(above[tri], label[tri], -1).max(axis=1)          # (m,), -1: no vertex above
+    has = vt >= 0
+    comp_area = np.bincount(vt[has], weights=area_in[has], minlength=n_comp)
+    comp_perim = np.bincount(vt[has], weights=contour[has], minlength=n_comp)
+    # area-weighted centroid and second moment of the triangle centroids (weights: area inside)
+    xc = pts[tri].mean(axis=1)
+    nrm = np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]]) * 0.5  # area vectors
+    x = pts[tri]
+    sq_edges = sum(np.sum((x[:, a] - x[:, b]) ** 2, axis=1) for a, b in ((0, 1), (1, 2), (2, 0)))
+    regions = []
+    ignored = 0
+    area_low = 0.0
+    for k in range(n_comp):
+        verts = np.flatnonzero(above & (label == k))
+        if verts.size == 0:
+            continue
+        A = float(comp_area[k])
+        if A < min_area or A <= 0:
+            ignored += 1
+            continue
+        sel = np.flatnonzero(vt == k)
+        wgt = area_in[sel]
+        cen = (wgt[:, None] * xc[sel]).sum(axis=0) / A
+        nmean = (wgt[:, None] * nrm[sel] / np.maximum(tri_area[sel], 1e-300)[:, None]).sum(axis=0)
+        aspect = float("inf")
+        if np.linalg.norm(nmean) > 1e-12 * A:
+            nhat = nmean / np.linalg.norm(nmean)
+            e1 = np.cross(nhat, [1.0, 0.0, 0.0])
+            if np.linalg.norm(e1) < 0.5:
+                e1 = np.cross(nhat, [0.0, 1.0, 0.0])
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(nhat, e1)
+            d = xc[sel] - cen
+            q = np.column_stack([d @ e1, d @ e2])
+            # each triangle also carries its own (isotropic part of the) second moment, trace
+            # Σ ℓ² / 36 per unit area: matters for regions one or two triangles wide
+            Mm = (wgt[:, None, None] * q[:, :, None] * q[:, None, :]).sum(axis=0) / A
+            Mm += np.eye(2) * float(np.sum(wgt * sq_edges[sel])) / (72.0 * A)
+            lam = np.linalg.eigvalsh(Mm)
+            aspect = math.sqrt(lam[1] / lam[0]) if lam[0] > 0 else float("inf")
+        P = float(comp_perim[k])
+        iso = P * P / (4.0 * math.pi * A)
+        kind = "ridge" if (aspect > ridge_aspect or iso > ridge_isoperimetric) else "spot"
+        regions.append(Region(verts, A, P, cen, aspect, iso, kind, float(cv[verts].max())))
+        area_low += A
+    N = len(regions)
+    n_ridges = sum(r.kind == "ridge" for r in regions)
+    return PatternMeasures(N, n_ridges, area_low, area_total, area_low / area_total if area_total > 0 else 0.0,
+                           spot_radius(area_low, N), spot_spacing(area_total, min(area_low, area_total), N),
+                           regions, ignored)
+
+
+def count_spots(points, triangles, c, c_star: float, min_area: float | None = None) -> int:
+    """N_sp: the number of connected regions with c > c* (see :func:`find_spots`)."""
+    return find_spots(points, triangles, c, c_star, min_area=min_area).n_spots
+
+
+# ----------------------------------------------------------------------------- profiles
+
+@dataclass
+class PolarProfile:
+    """Binned means against the polar angle θ from the pole (radians, 0 at the pole).
+
+    ``theta`` bin centres (k,), ``mean`` area-weighted means (k,) (NaN in empty bins),
+    ``count`` vertices per bin (k,), ``edges`` bin edges (k+1,).
+    """
+
+    theta: np.ndarray
+    mean: np.ndarray
+    count: np.ndarray
+    edges: np.ndarray
+
+
+def polar_profile(points, values, n_bins: int = 18, *, triangles=None, pole=(0.0, 0.0, 1.0),
+                  center=None) -> PolarProfile:
+    """Means of a vertex field in bins of the polar angle (the paper's Fig. 6d: c and H against θ).
+
+    The angle is measured at ``center`` (default: the centroid of the points) from the
+    direction ``pole``. With ``triangles`` the mean is weighted by the lumped vertex
+    areas, otherwise every vertex counts the same.
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
+    v = _field(values, len(pts), "values")
+    if int(n_bins) < 1:
+        raise ValueError(f"n_bins must be >= 1, got {n_bins}")
+    p = np.asarray(pole, dtype=float)
+    if p.shape != (3,) or not np.linalg.norm(p) > 0:
+        raise ValueError(f"pole must be a non-zero 3-vector, got {pole!r}")
+    p = p / np.linalg.norm(p)
+    ctr = pts.mean(axis=0) if center is None else np.asarray(center, dtype=float)
+    d = pts - ctr
+    r = np.linalg.norm(d, axis=1)
+    theta = np.arccos(np.clip((d @ p) / np.maximum(r, 1e-300), -1.0, 1.0))
+    w = np.ones(len(pts)) if triangles is None else vertex_areas(pts, triangles)
+    edges = np.linspace(0.0, math.pi, int(n_bins) + 1)
+    idx = np.clip(np.searchsorted(edges, theta, side="right") - 1, 0, int(n_bins) - 1)
+    num = np.bincount(idx, weights=w * v, minlength=n_bins)
+    den = np.bincount(idx, weights=w, minlength=n_bins)
+    cnt = np.bincount(idx, minlength=n_bins)
+    mean = np.divide(num, den, out=np.full(n_bins, np.nan), where=den > 0)
+    return PolarProfile(0.5 * (edges[1:] + edges[:-1]), mean, cnt, edges)
+
+
+# ----------------------------------------------------------------------------- wrinkles (disk test)
+
+def _sample_on_mesh(xy, tri, v, q):
+    """Linear interpolation of a vertex field at points q (k, 2) of a flat triangulation; NaN outside."""
+    a, b, c = xy[tri[:, 0]], xy[tri[:, 1]], xy[tri[:, 2]]
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    out = np.full(len(q), np.nan)
+    tol = -1e-12
+    for start in range(0, len(q), 64):
+        p = q[start:start + 64, None, :]                       # (k, 1, 2)
+        l1 = ((p[..., 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (p[..., 1] - a[:, 1])) / det
+        l2 = ((b[:, 0] - a[:, 0]) * (p[..., 1] - a[:, 1]) - (p[..., 0] - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
+        l0 = 1.0 - l1 - l2
+        inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)      # (k, m)
+        has = inside.any(axis=1)
+        t = np.argmax(inside, axis=1)
+        r = np.arange(len(t))
+        val = l0[r, t] * v[tri[t, 0]] + l1[r, t] * v[tri[t, 1]] + l2[r, t] * v[tri[t, 2]]
+        out[start:start + 64] = np.where(has, val, np.nan)
+    return out
+
+
+def _circle_samples(points, values, radius, center, n_samples, triangles):
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+        raise ValueError(f"points must have shape (n, 2) or (n, 3), got {pts.shape}")
+    v = _field(values, len(pts), "values")
+    if not (math.isfinite(radius) and radius > 0):
+        raise ValueError(f"radius must be > 0, got {radius}")
+    ns = int(n_samples)
+    if ns < 8:
+        raise ValueError(f"n_samples must be >= 8, got {n_samples}")
+    phi = 2 * math.pi * np.arange(ns) / ns
+    cx, cy = float(center[0]), float(center[1])
+    q = np.column_stack([cx + radius * np.cos(phi), cy + radius * np.sin(phi)])
+    if triangles is not None:
+        w = _sample_on_mesh(pts[:, :2], _mesh(pts, triangles)[1], v, q)
+    else:
+        from scipy.interpolate import LinearNDInterpolator
+        w = LinearNDInterpolator(pts[:, :2], v)(q)
+    if not np.all(np.isfinite(w)):
+        raise ValueError(f"the circle of radius {radius} about {center} leaves the mesh")
+    return w
+
+
+def _spectrum(w):
+    ns = len(w)
+    amp = np.abs(np.fft.rfft(w)) / ns
+    amp[1:] *= 2.0
+    if ns % 2 == 0:
+        amp[-1] /= 2.0
+    return amp
+
+
+def azimuthal_spectrum(points, values, radius: float, *, center=(0.0, 0.0), n_samples: int = 512,
+                       triangles=None):
+    """Fourier amplitudes |ŵ_k| (k = 0 .. n_samples/2) of a field sampled on a circle.
+
+    ``points`` are the (reference) positions (n, 2) or (n, 3) of a flat mesh in the xy
+    plane, ``values`` (n,) a vertex field (e.g. the deflection w), sampled by linear
+    interpolation at ``n_samples`` angles on the circle of ``radius`` about ``center``:
+    on the mesh's own ``triangles`` when given, else on a Delaunay triangulation of the
+    points (slower). Amplitudes are in the unit of ``values``:
+    w(φ) = ŵ_0 + Σ_k ŵ_k cos(k φ − φ_k). Raises ValueError when the circle leaves the mesh.
+    """
+    return _spectrum(_circle_samples(points, values, radius, center, n_samples, triangles))
+
+
+def count_wrinkles(points, values, radius: float, *, center=(0.0, 0.0), n_samples: int = 512,
+                   triangles=None, min_mode: int = 1, rel_tol: float = 1e-3, method: str = "fourier") -> int:
+    """Number of azimuthal wrinkles of a field (the deflection w) on a circle of ``radius``.
+
+    ``method="fourier"``: the dominant azimuthal mode k ≥ ``min_mode`` of w(φ) (w ∝ cos kφ
+    has k wrinkles). ``method="zeros"``: half the number of sign changes of w(φ) − mean.
+    Returns 0 when the non-axisymmetric part is below ``rel_tol`` of the total amplitude
+    on the circle (an axisymmetric or flat state). ``min_mode=2`` ignores a tilt (k = 1).
+    See :func:`azimuthal_spectrum` for the sampling (pass ``triangles`` for speed).
+    """
+    if method not in ("fourier", "zeros"):
+        raise ValueError(f"method must be 'fourier' or 'zeros', got {method!r}")
+    if int(min_mode) < 1:
+        raise ValueError(f"min_mode must be >= 1, got {min_mode}")
+    w = _circle_samples(points, values, radius, center, n_samples, triangles)
+    amp = _spectrum(w)
+    scale = amp[0] + amp[1:].sum()
+    modes = amp[int(min_mode):]
+    if scale == 0 or modes.max() <= rel_tol * scale:
+        return 0
+    if method == "fourier":
+        return int(min_mode + int(np.argmax(modes)))
+    d = w - w.mean()
+    s = np.sign(d)
+    s[s == 0] = 1
+    return int(np.count_nonzero(s != np.roll(s, 1)) // 2)

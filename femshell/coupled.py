@@ -1,0 +1,924 @@
+r"""The mechanochemical time loop (design.md 1.4): growth -> stable equilibrium -> curvature -> chemistry.
+
+Physics and solver orchestration only: no files, no pictures. The scene runner gives
+callbacks for output and checkpoints and stores :meth:`CoupledLoop.state_dict`.
+
+One step of length dt, from an accepted state (t, c, u) where u is a stable equilibrium
+of the shell grown by s(c):
+
+1. chemistry on the CURRENT surface x(u): c⁺ = step(c, dt, P(H(u))) with
+   :class:`~femshell.chemistry.ReactionDiffusion` (implicit Euler in D Δ_Γ − β for
+   D > 0; the exact exponential update node by node for D = 0, no stiffness built);
+2. step control: Δs = max over elements |s(c⁺) − s(c)|; if Δs > ``ds_max`` the step
+   is cut and redone (the mechanics has not been touched yet, so this is cheap);
+3. growth: ā = s² ā0, b̄ = s² b̄0, h̄ = h0/s² (or h0) with s = s(c⁺) per element
+   (:class:`GrowthCoupling`), and ``ShellModel.set_rest_state`` (cached pattern);
+4. mechanics: :func:`~femshell.solvers.newton.minimize` with ``stable=True`` warm
+   started from u (or from the secant prediction u + (dt/dt_prev)(u − u_prev) when
+   that has lower energy): a local minimum, never a saddle. A Newton failure cuts dt
+   and redoes the step from the last accepted state;
+5. accept: t += dt, (c, u) ← (c⁺, u⁺), H from the new shape; the next dt grows by at
+   most ``grow`` while Δs stays below ``ds_max`` (dt_next = dt · min(grow, safety · ds_max/Δs)).
+
+After ``max_cuts`` cuts in one step (or dt < ``dt_min``) the loop stops with a
+:class:`CoupledError` whose message says why; the loop still holds the last accepted
+state (the rest state of the shell is restored), ready to be checkpointed. Nothing
+is ever accepted with a non-finite value.
+
+**Rest curvature and H (how design.md's "H relative to k0" is implemented).**
+design.md 1.1 asks for ā⁻¹ b̄ = k0 I and 1.3 for H = ½ tr(a⁻¹ b) − k0. On a polyhedral
+sphere the discrete second fundamental form of the drawn mesh at zero edge angles,
+b_mesh = ``model.fundamental_forms(model.initial_unknowns())[1]``, is *not* k0 ā0
+element by element: ½ tr(ā0⁻¹ b_mesh) scatters around 1/R on gmsh meshes (L2 7–10 %,
+up to a factor 2 on single elements) and the scatter shrinks only like h^0.4 under
+refinement (the mid-edge normal at zero edge angle is the mean of the two face
+normals, not the surface normal; measured in the ``curvature`` validation case).
+With b̄ = k0 ā0 the untouched sphere would therefore not be stress free, and H of
+the relaxed shape would carry a small spurious signal that the source P(H) turns
+into chemistry. So, by default (``rest_curvature="mesh"``):
+
+* b̄ = s² b_mesh, hence ā⁻¹ b̄ = ā0⁻¹ b_mesh ≈ k0 I: the growth multiplies the rest
+  metric and keeps the mesh's own rest curvature tensor, and the drawn mesh at zero
+  edge angles is *exactly* stress free at s = 1;
+* H = ½ tr(a⁻¹ b) − ½ tr(ā0⁻¹ b_mesh) per element (``mean_curvature(a, b, k_ref)`` with the
+  per-element reference k_ref = ½ tr(ā0⁻¹ b_mesh) ≈ k0), so the untouched shape has
+  H = 0 exactly, and H of a deformed shape is the change of the discrete mean
+  curvature from the rest mesh (accuracy below: a few per cent at the vertices,
+  with an element-scale scatter that does not vanish under refinement). H per
+  element is averaged to the vertices with the areas of the current surface
+  (:func:`femshell.geometry.element_to_vertex`). With outward normals H > 0 where
+  the shell bulges outward.
+
+``rest_curvature="k0"`` is design.md's literal form, b̄ = k0 s² ā0 and H relative to
+k0; the initial equilibrium then relaxes the mesh first (a displacement of ~1e-4 R)
+and the untouched sphere keeps a small uniform H ≈ (0.03–0.5 %) k0 > 0 (finer meshes:
+less), so c settles at a uniform c ≈ w H ≪ c* instead of exactly 0.
+
+Accuracy of the two (validation case ``curvature``, a unit sphere stretched into a
+spheroid z × 1.1, error of H − H_rest relative to its L2 norm, edge 0.3 … 0.07 R):
+"mesh" 11 → 8 % per element (does not converge: the relaxed angles partly
+reproduce the rest mesh's scatter) and 7.7 → 2.7 % averaged to the vertices (order
+≈ 0.7); "k0" 17 → 1.0 % per element and 18 → 1.1 % at the vertices (order ≈ 2).
+
+Units (design.md section 3): lengths in cell sizes, time in 1/β, E = 1.
+
+Example
+-------
+>>> from femshell.mesh.generators import sphere                                  # doctest: +SKIP
+>>> from femshell.coupled import MechanochemicalModel, TimeStepping, InitialSpot, CoupledLoop
+>>> mesh = sphere(30.0, n_vertices=2500)                                          # doctest: +SKIP
+>>> params = MechanochemicalModel(h0=2.0, radius=30.0, c_star=0.1, D=0.0)
+>>> loop = CoupledLoop(mesh, params, TimeStepping(t_final=20.0), c0=InitialSpot())  # doctest: +SKIP
+>>> result = loop.run(callback=lambda rec, lp: print(rec.t, rec.max_c, rec.n_spots))  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+from .chemistry import ReactionDiffusion, curvature_source
+from .geometry import element_to_vertex, mean_curvature
+from .growth import THICKNESS_MODES, contractility, element_average, stretch, target_metric, target_thickness
+from .shell import Material, RestState, ShellModel
+from .solvers.newton import NewtonError, minimize
+
+# Bitwise reproducible resumes need a run-to-run reproducible linear solver. Threaded MKL
+# PARDISO is not (measured: the same Newton solve twice in one process differed by 1e-16
+# now and then, with sequential METIS too); MKL's conditional numerical reproducibility
+# mode fixes that. It must be set before MKL starts; a user's own setting wins.
+# (Better placed in femshell/solvers/linear.py before pypardiso is imported.)
+os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
+
+__all__ = ["MechanochemicalModel", "GrowthCoupling", "InitialSpot", "gaussian_spot", "TimeStepping",
+           "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "REST_CURVATURES"]
+
+REST_CURVATURES = ("mesh", "k0")
+STATE_VERSION = 1
+
+
+class CoupledError(RuntimeError):
+    """The time loop could not make a step; the loop still holds the last accepted state."""
+
+
+def _finite(name, v, lo=None, hi=None, lo_open=False, hi_open=False, text=None):
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {v!r}") from None
+    bad = not math.isfinite(v)
+    if lo is not None:
+        bad |= (v <= lo) if lo_open else (v < lo)
+    if hi is not None:
+        bad |= (v >= hi) if hi_open else (v > hi)
+    if bad:
+        rng = text or (f"{'(' if lo_open else '['}{'-inf' if lo is None else lo}, "
+                       f"{'inf' if hi is None else hi}{')' if hi_open or hi is None else ']'}")
+        raise ValueError(f"{name} must be a finite number in {rng}, got {v!r}")
+    return v
+
+
+# ----------------------------------------------------------------------------- parameters
+
+@dataclass(frozen=True)
+class MechanochemicalModel:
+    """Physical parameters of the mechanochemical shell (design.md 1.1–1.3, defaults of 1.5).
+
+    Parameters (units of design.md section 3: lengths in cell sizes, time in 1/β)
+    ----------
+    nu, E : Poisson ratio in (−1, 0.5] and Young's modulus (> 0; only scales energies).
+    h0 : rest thickness (length, > 0).
+    thickness_mode : "volume" (h̄ = h0/s², default) or "uniform" (h̄ = h0).
+    radius, k0 : natural curvature k0 = 1/radius (1/length); give at most one of them
+        (both: they must agree); neither: k0 = 0 (flat sheet). With
+        ``rest_curvature="mesh"`` k0 is only a reference (the mesh's own curvature is
+        the rest curvature; see the module docstring); with ``"k0"`` it is b̄ = k0 ā.
+    lam_max, lam_min : contractility of untouched and saturated tissue, 0 < Λmin ≤ Λmax.
+    lam0 : reference contractility Λ0 of s = Λ0/Λ(c) (default Λmax). Note s(0) =
+        Λmax/Λ(0) = 1 + 1.5e-5 with the defaults (Λ(0) is not exactly Λmax); pass
+        ``lam0=contractility(0, ...)`` for s(0) = 1 exactly.
+    b : steepness of the switch (1/concentration, > 0); c_star : threshold c*.
+    w : production rate (concentration·length/time, ≥ 0); Hs : saturation curvature (1/length, > 0).
+    beta : degradation rate (1/time, ≥ 0); D : diffusion coefficient (length²/time, ≥ 0).
+    rest_curvature : "mesh" (default) or "k0", see the module docstring.
+    """
+
+    nu: float = 0.5
+    E: float = 1.0
+    h0: float = 2.0
+    thickness_mode: str = "volume"
+    radius: float | None = None
+    k0: float | None = None
+    lam_max: float = 15.0
+    lam_min: float = 10.0
+    lam0: float | None = None
+    b: float = 100.0
+    c_star: float = 0.1
+    w: float = 15.0
+    Hs: float = 0.05
+    beta: float = 1.0
+    D: float = 0.0
+    rest_curvature: str = "mesh"
+
+    def __post_init__(self):
+        _finite("nu (Poisson ratio)", self.nu, -1.0, 0.5, lo_open=True, text="(-1, 0.5]")
+        _finite("E (Young's modulus)", self.E, 0.0, lo_open=True, text="(0, inf)")
+        _finite("h0 (rest thickness)", self.h0, 0.0, lo_open=True, text="(0, inf)")
+        if self.thickness_mode not in THICKNESS_MODES:
+            raise ValueError(f"thickness_mode must be one of {THICKNESS_MODES}, got {self.thickness_mode!r}")
+        if self.radius is not None:
+            _finite("radius (R, k0 = 1/R)", self.radius, 0.0, lo_open=True, text="(0, inf)")
+        if self.k0 is not None:
+            _finite("k0 (natural curvature)", self.k0)
+        if self.radius is not None and self.k0 is not None and not math.isclose(1.0 / self.radius, self.k0,
+                                                                                 rel_tol=1e-9):
+            raise ValueError(f"radius = {self.radius} and k0 = {self.k0} disagree (k0 must be 1/radius); "
+                             "give only one of them")
+        _finite("lam_min (Λmin)", self.lam_min, 0.0, lo_open=True, text="(0, inf)")
+        _finite("lam_max (Λmax)", self.lam_max, self.lam_min, text=f"[lam_min = {self.lam_min}, inf)")
+        if self.lam0 is not None:
+            _finite("lam0 (Λ0)", self.lam0, 0.0, lo_open=True, text="(0, inf)")
+        _finite("b (steepness of the contractility switch)", self.b, 0.0, lo_open=True, text="(0, inf)")
+        _finite("c_star (threshold c*)", self.c_star)
+        _finite("w (production rate)", self.w, 0.0)
+        _finite("Hs (saturation curvature)", self.Hs, 0.0, lo_open=True, text="(0, inf)")
+        _finite("beta (degradation rate)", self.beta, 0.0)
+        _finite("D (diffusion coefficient)", self.D, 0.0)
+        if self.rest_curvature not in REST_CURVATURES:
+            raise ValueError(f"rest_curvature must be one of {REST_CURVATURES}, got {self.rest_curvature!r}")
+
+    # derived quantities
+    @property
+    def natural_curvature(self) -> float:
+        """k0 (1/length): 1/radius, or k0, or 0."""
+        if self.radius is not None:
+            return 1.0 / self.radius
+        return 0.0 if self.k0 is None else float(self.k0)
+
+    @property
+    def material(self) -> Material:
+        return Material(E=self.E, nu=self.nu)
+
+    @property
+    def reference_contractility(self) -> float:
+        """Λ0 (default Λmax)."""
+        return self.lam_max if self.lam0 is None else float(self.lam0)
+
+    @property
+    def c_max(self) -> float:
+        """Steady concentration of a saturated bulge, w Hs / β (inf when β = 0)."""
+        return self.w * self.Hs / self.beta if self.beta > 0 else float("inf")
+
+    @property
+    def s_max(self) -> float:
+        """Largest stretch, Λ0 / Λmin."""
+        return self.reference_contractility / self.lam_min
+
+    def contractility(self, c):
+        return contractility(c, self.lam_max, self.lam_min, self.b, self.c_star)
+
+    def stretch(self, c):
+        """s(c) = Λ0 / Λ(c) (dimensionless), any shape."""
+        return stretch(c, self.lam0, self.lam_max, self.lam_min, self.b, self.c_star)
+
+    def source(self, H):
+        """P(H) = w H / (1 + H/Hs) for H > 0, else 0 (concentration/time)."""
+        return curvature_source(H, self.w, self.Hs)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+# ----------------------------------------------------------------------------- growth
+
+class GrowthCoupling:
+    """From the concentration to the rest state of the shell, and from the shape to H.
+
+    c (vertex) -> element mean -> s(c) -> RestState(ā = s² ā0, b̄ = s² b̄0, h̄(s)) ->
+    ``model.set_rest_state``. ā0 and b̄0 are read from ``model`` at its initial
+    unknowns (the drawn mesh at zero edge angles); b̄0 = b_mesh with
+    ``rest_curvature="mesh"``, k0 ā0 with ``"k0"`` (module docstring).
+
+    Attributes
+    ----------
+    a0, b0 : (m, 2, 2) rest metric (length²) and rest curvature (length) at s = 1.
+    k_ref : (m,) the per-element reference of H (1/length): ½ tr(ā0⁻¹ b_mesh) or k0.
+    """
+
+    def __init__(self, model: ShellModel, params: MechanochemicalModel):
+        self.model = model
+        self.params = params
+        self.triangles = np.asarray(model.mesh.triangles)
+        a0, b_mesh = model.fundamental_forms(model.initial_unknowns())
+        self.a0 = np.array(a0, dtype=float)
+        self.b_mesh = np.array(b_mesh, dtype=float)
+        if params.rest_curvature == "mesh":
+            self.b0 = self.b_mesh
+            self.k_ref = mean_curvature(self.a0, self.b_mesh, 0.0)
+        else:
+            k0 = params.natural_curvature
+            self.b0 = k0 * self.a0
+            self.k_ref = np.full(len(self.a0), k0)
+
+    def stretch(self, c_vertices) -> np.ndarray:
+        """s per element from the vertex concentrations (element mean of c, then s(c))."""
+        return self.params.stretch(element_average(c_vertices, self.triangles))
+
+    def rest_state(self, s) -> RestState:
+        """The grown targets for the element stretches ``s`` (m,)."""
+        s = np.asarray(s, dtype=float)
+        s2 = (s * s)[:, None, None]
+        return RestState(target_metric(self.a0, s), s2 * self.b0,
+                         target_thickness(self.params.h0, s, self.params.thickness_mode))
+
+    def apply(self, s):
+        """``model.set_rest_state(rest_state(s))``."""
+        self.model.set_rest_state(self.rest_state(s))
+
+    def mean_curvature(self, u):
+        """H per element and per vertex (1/length) of the state ``u`` (module docstring)."""
+        a, b = self.model.fundamental_forms(u)
+        H = mean_curvature(np.asarray(a), np.asarray(b), self.k_ref)
+        Hv = element_to_vertex(H, self.model.positions(u), self.triangles)
+        return H, Hv
+
+
+# ----------------------------------------------------------------------------- initial condition
+
+def gaussian_spot(points, amplitude: float, width: float, *, pole=(0.0, 0.0, 1.0), center=None,
+                  elongation: float = 1.0, direction=None, distance: str = "geodesic") -> np.ndarray:
+    r"""c0 = amplitude · exp(−(r/width)²) about a pole (concentration at the vertices, (n,)).
+
+    ``distance``: "geodesic" (R_eff · angle from the pole seen from ``center``; R_eff the
+    mean distance of the points from ``center``, default their centroid), "chord"
+    (straight distance to the pole point center + R_eff · pole) or "planar" (distance
+    from the axis through ``center`` along ``pole``: for flat meshes). With
+    ``elongation`` e ≠ 1 the spot is stretched by e along the tangent ``direction``
+    at the pole (default: the x axis projected on the tangent plane):
+    r² = (ξ/e)² + η² in tangent coordinates (ξ along ``direction``).
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
+    amplitude = _finite("spot amplitude", amplitude, 0.0)
+    width = _finite("spot width", width, 0.0, lo_open=True, text="(0, inf)")
+    elongation = _finite("spot elongation", elongation, 0.0, lo_open=True, text="(0, inf)")
+    if distance not in ("geodesic", "chord", "planar"):
+        raise ValueError(f"distance must be 'geodesic', 'chord' or 'planar', got {distance!r}")
+    p = np.asarray(pole, dtype=float)
+    if p.shape != (3,) or not np.linalg.norm(p) > 0:
+        raise ValueError(f"pole must be a non-zero 3-vector, got {pole!r}")
+    p = p / np.linalg.norm(p)
+    ctr = pts.mean(axis=0) if center is None else np.asarray(center, dtype=float)
+    d = pts - ctr
+    dirv = np.array([1.0, 0.0, 0.0]) if direction is None else np.asarray(direction, dtype=float)
+    e1 = dirv - (dirv @ p) * p
+    if np.linalg.norm(e1) < 1e-8:
+        e1 = np.array([0.0, 1.0, 0.0]) - p[1] * p
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(p, e1)
+    if distance == "planar":
+        xi, eta = d @ e1, d @ e2
+    else:
+        r_eff = float(np.linalg.norm(d, axis=1).mean())
+        if distance == "geodesic":
+            rn = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+            rho = r_eff * np.arccos(np.clip((d @ p) / rn, -1.0, 1.0))
+        else:
+            rho = np.linalg.norm(d - r_eff * p, axis=1)
+        phi = np.arctan2(d @ e2, d @ e1)
+        xi, eta = rho * np.cos(phi), rho * np.sin(phi)
+    r2 = (xi / elongation) ** 2 + eta**2
+    return amplitude * np.exp(-r2 / width**2)
+
+
+@dataclass(frozen=True)
+class InitialSpot:
+    """The initial condition of design.md 1.4: c = 0 except a Gaussian spot at a pole.
+
+    ``amplitude`` default c_max = w Hs/β; ``width`` d default h0; other fields as in
+    :func:`gaussian_spot`.
+    """
+
+    amplitude: float | None = None
+    width: float | None = None
+    elongation: float = 1.0
+    pole: tuple = (0.0, 0.0, 1.0)
+    direction: tuple | None = None
+    distance: str = "geodesic"
+
+    def field(self, points, params: MechanochemicalModel) -> np.ndarray:
+        amp = params.c_max if self.amplitude is None else self.amplitude
+        if not math.isfinite(amp):
+            raise ValueError("spot amplitude defaults to c_max = w Hs / beta, infinite for beta = 0: give one")
+        width = params.h0 if self.width is None else self.width
+        return gaussian_spot(points, amp, width, pole=self.pole, elongation=self.elongation,
+                             direction=self.direction, distance=self.distance)
+
+
+# ----------------------------------------------------------------------------- time stepping
+
+@dataclass(frozen=True)
+class TimeStepping:
+    """Controls of the time loop (times in 1/β).
+
+    t_final : end time. dt_initial, dt_min, dt_max : first, smallest and largest step.
+    ds_max : largest allowed change of the stretch s in any element per step.
+    grow : largest growth factor of dt from one step to the next; safety : factor on
+        the predicted dt (dt_next = dt · min(grow, safety · ds_max / Δs)).
+    max_cuts : cuts of one step (Δs too large or Newton failed) before giving up.
+    stationary_rate_c : stop when max|Δc| / (dt · c_scale) stays below this for
+        ``stationary_steps`` steps in a row, together with
+    stationary_rate_x : max|Δx| / (dt · h0) (shape change per unit time in thicknesses);
+        c_scale = max(max c, 1e-2 c_max). Set either to 0 to never stop early.
+    newton_rtol, newton_atol_strain : convergence |∇Π| ≤ rtol · |∇Π(u_start)| + atol, with
+        atol = newton_atol_strain × (the residual of a uniform unit strain).
+    newton_max_iter, newton_backend : passed to :func:`~femshell.solvers.newton.minimize`.
+    ramp_ds : largest stretch increment of the initial equilibrium (growth ramped from
+        s = 1 to s(c0), with a secant predictor; cut on Newton failure, grown by 1.5 after success).
+    predictor : start Newton from the secant prediction u + (h/h_prev)(u − u_prev) when
+        it has lower energy than u (a grown rest state leaves the old shape compressed,
+        near buckling, where Newton from the old shape needs many iterations).
+    max_steps : stop after this many accepted steps in one call of :meth:`CoupledLoop.run`.
+    """
+
+    t_final: float = 100.0
+    dt_initial: float = 0.01
+    dt_min: float = 1e-8
+    dt_max: float = 2.0
+    ds_max: float = 0.02
+    grow: float = 1.5
+    safety: float = 0.8
+    max_cuts: int = 12
+    stationary_rate_c: float = 1e-3
+    stationary_rate_x: float = 1e-3
+    stationary_steps: int = 3
+    newton_rtol: float = 1e-6
+    newton_atol_strain: float = 1e-10
+    newton_max_iter: int = 40
+    newton_backend: str = "auto"
+    ramp_ds: float = 0.1
+    predictor: bool = True
+    max_steps: int | None = None
+
+    def __post_init__(self):
+        _finite("t_final", self.t_final, 0.0)
+        _finite("dt_min", self.dt_min, 0.0, lo_open=True, text="(0, inf)")
+        _finite("dt_max", self.dt_max, self.dt_min, text=f"[dt_min = {self.dt_min}, inf)")
+        _finite("dt_initial", self.dt_initial, self.dt_min, self.dt_max,
+                text=f"[dt_min = {self.dt_min}, dt_max = {self.dt_max}]")
+        _finite("ds_max", self.ds_max, 0.0, lo_open=True, text="(0, inf)")
+        _finite("grow", self.grow, 1.0)
+        _finite("safety", self.safety, 0.0, 1.0, lo_open=True, text="(0, 1]")
+        if int(self.max_cuts) != self.max_cuts or self.max_cuts < 0:
+            raise ValueError(f"max_cuts must be an integer >= 0, got {self.max_cuts!r}")
+        _finite("stationary_rate_c", self.stationary_rate_c, 0.0)
+        _finite("stationary_rate_x", self.stationary_rate_x, 0.0)
+        if int(self.stationary_steps) != self.stationary_steps or self.stationary_steps < 1:
+            raise ValueError(f"stationary_steps must be an integer >= 1, got {self.stationary_steps!r}")
+        _finite("newton_rtol", self.newton_rtol, 0.0, lo_open=True, text="(0, inf)")
+        _finite("newton_atol_strain", self.newton_atol_strain, 0.0)
+        if int(self.newton_max_iter) != self.newton_max_iter or self.newton_max_iter < 1:
+            raise ValueError(f"newton_max_iter must be an integer >= 1, got {self.newton_max_iter!r}")
+        _finite("ramp_ds", self.ramp_ds, 0.0, lo_open=True, text="(0, inf)")
+        if self.max_steps is not None and (int(self.max_steps) != self.max_steps or self.max_steps < 0):
+            raise ValueError(f"max_steps must be None or an integer >= 0, got {self.max_steps!r}")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class StepRecord:
+    """What happened in one accepted step (or the initial state, step 0).
+
+    t, dt : time after the step and the step length (1/β). newton_iterations : of
+    the accepted solve; cuts : rejected attempts before it. max_c : max c; max_H,
+    min_H : extremes of the vertex H (1/length); max_s : largest stretch; ds : max
+    |Δs| of the step; energy : elastic energy (E·length³); n_spots : N_sp (regions
+    with c > c*); rate_c, rate_x : the stationarity measures (TimeStepping);
+    stable : the Hessian at the equilibrium had no negative eigenvalue; wall_s :
+    wall time of the step (s).
+    """
+
+    step: int
+    t: float
+    dt: float
+    newton_iterations: int
+    cuts: int
+    max_c: float
+    max_H: float
+    min_H: float
+    max_s: float
+    ds: float
+    energy: float
+    n_spots: int
+    rate_c: float
+    rate_x: float
+    stable: bool | None
+    wall_s: float
+
+    def as_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass
+class RunResult:
+    """How :meth:`CoupledLoop.run` ended.
+
+    status : "t_final", "stationary", "max_steps", "wall_time" or "failed";
+    message : human-readable reason; steps : accepted steps in this call; t : final
+    time; wall_s : wall time of the call; last : the last :class:`StepRecord`.
+    """
+
+    status: str
+    message: str
+    steps: int
+    t: float
+    wall_s: float
+    last: StepRecord | None = None
+    records: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.status != "failed"
+
+
+# ----------------------------------------------------------------------------- the loop
+
+class CoupledLoop:
+    """The staggered quasi-static mechanochemical loop (module docstring).
+
+    Parameters
+    ----------
+    mesh : SurfaceMesh
+        The rest shape (a sphere of radius R for the paper's cases).
+    params : MechanochemicalModel
+    stepping : TimeStepping, optional
+    c0 : InitialSpot, (n,) array or None
+        Initial concentration (None: zero everywhere).
+    boundary_conditions : sequence
+        Shell boundary conditions (none for a closed sphere: the six rigid-body
+        components are pinned by ShellModel's default).
+    equilibrate : bool
+        Find the stable equilibrium of the initial growth s(c0) now (ramped in steps of
+        ``stepping.ramp_ds``). :meth:`from_state_dict` skips it.
+    log : callable or None
+        ``log(str)`` for one line per step and every cut.
+
+    Attributes
+    ----------
+    t, dt, step, c, u : the current state (dt is the proposal for the next step).
+    s : (m,) element stretches of c; H, H_vertex : H per element / vertex (1/length).
+    shell : ShellModel; growth : GrowthCoupling; chemistry : ReactionDiffusion.
+    """
+
+    def __init__(self, mesh, params: MechanochemicalModel, stepping: TimeStepping | None = None, c0=None,
+                 boundary_conditions=(), equilibrate: bool = True, log=None):
+        if not isinstance(params, MechanochemicalModel):
+            raise TypeError(f"params must be a MechanochemicalModel, got {type(params).__name__}")
+        self.mesh = mesh
+        self.params = params
+        self.stepping = stepping or TimeStepping()
+        self.log = log
+        n = mesh.n_vertices
+        # the rest state at s = 1 is replaced by GrowthCoupling right away
+        from .shell.rest_state import metric
+
+        a0 = metric(np.asarray(mesh.points, float), np.asarray(mesh.triangles))
+        self.shell = ShellModel(mesh, params.material,
+                                RestState(a0, params.natural_curvature * a0, params.h0), boundary_conditions)
+        self.growth = GrowthCoupling(self.shell, params)
+        self.chemistry = ReactionDiffusion(mesh.triangles, n, D=params.D, beta=params.beta, points=mesh.points)
+        self._length = float(params.h0)
+        self._atol = self._residual_floor()
+
+        if c0 is None:
+            c = np.zeros(n)
+        elif isinstance(c0, InitialSpot):
+            c = c0.field(np.asarray(mesh.points, float), params)
+        else:
+            c = np.array(c0, dtype=float)
+            if c.shape != (n,):
+                raise ValueError(f"c0 must have one value per vertex, shape ({n},), got {c.shape}")
+        if not np.all(np.isfinite(c)) or np.any(c < 0):
+            raise ValueError("initial concentration c0 must be finite and >= 0")
+        self.t = 0.0
+        self.dt = float(self.stepping.dt_initial)
+        self.step = 0
+        self.c = c
+        self.u = self.shell.initial_unknowns()
+        self.stationary_count = 0
+        self.n_rejected = 0
+        self.newton_total = 0
+        self.last_newton_iterations = 0
+        self._last_ds = 0.0
+        self._u_prev, self._h_prev = None, 0.0
+        self._last_rates = (float("nan"), float("nan"))
+        self._last_stable = None
+        self.s = self.growth.stretch(self.c)
+        if equilibrate:
+            self._equilibrate_initial()
+        else:
+            self.growth.apply(self.s)
+        self._update_curvature()
+
+    # ---- helpers ------------------------------------------------------------------------------
+    def _say(self, msg):
+        if self.log:
+            self.log(msg)
+
+    def _residual_floor(self) -> float:
+        """atol of Newton: newton_atol_strain × |∇Π| of a uniform unit strain (by a 1e-3 difference)."""
+        u0 = self.shell.initial_unknowns()
+        m = len(self.growth.a0)
+        self.growth.apply(np.ones(m))
+        g1 = self.shell.gradient(u0)
+        self.growth.apply(np.full(m, 1.001))
+        g2 = self.shell.gradient(u0)
+        self.growth.apply(np.ones(m))
+        unit = float(np.linalg.norm(g2 - g1)) / 1e-3
+        if not (math.isfinite(unit) and unit > 0):
+            unit = self.params.E * self.params.h0 * math.sqrt(float(np.sum(self.shell.rest.area)))
+        return self.stepping.newton_atol_strain * unit
+
+    def _newton(self, u_start):
+        st = self.stepping
+        return minimize(self.shell, u_start, stable=True, rtol=st.newton_rtol, atol=self._atol,
+                        max_iter=int(st.newton_max_iter), backend=st.newton_backend, log=None)
+
+    def _predict(self, u, u_prev, ratio):
+        """Secant predictor u + ratio (u − u_prev) for the current rest state, if it lowers the energy.
+
+        A grown rest state leaves the previous shape compressed; a compressed shell is
+        near (or past) buckling, where Newton from the old shape struggles. The secant
+        step moves most of the way along the growth path first.
+        """
+        if u_prev is None or not (ratio > 0 and math.isfinite(ratio)):
+            return u
+        guess = u + min(ratio, 2.0) * (u - u_prev)
+        try:
+            e_guess = self.shell.energy(guess)
+        except (ValueError, FloatingPointError):
+            return u
+        return guess if (math.isfinite(e_guess) and e_guess < self.shell.energy(u)) else u
+
+    def _update_curvature(self):
+        self.H, self.H_vertex = self.growth.mean_curvature(self.u)
+        self.energy = float(self.shell.strain_energy(self.u))
+
+    @property
+    def points(self) -> np.ndarray:
+        """Current vertex positions (n, 3)."""
+        return self.shell.positions(self.u)
+
+    @property
+    def source(self) -> np.ndarray:
+        """P(H) at the vertices for the current shape (concentration/time)."""
+        return self.params.source(self.H_vertex)
+
+    def _equilibrate_initial(self):
+        """Stable equilibrium for s(c0), the growth ramped up from s = 1 in increments ≤ ramp_ds."""
+        st = self.stepping
+        target = self.s
+        ones = np.ones_like(target)
+        span = float(np.max(np.abs(target - 1.0))) if len(target) else 0.0
+        lam, dlam = 0.0, 1.0 if span <= st.ramp_ds else st.ramp_ds / span
+        u = self.u
+        u_prev, lam_prev = None, None
+        iters = 0
+        cuts = 0
+        while True:
+            trial = min(1.0, lam + dlam)
+            s = ones + trial * (target - ones)
+            self.growth.apply(s)
+            start = u if u_prev is None else self._predict(u, u_prev, (trial - lam) / (lam - lam_prev))
+            try:
+                res = self._newton(start)
+                ok = bool(np.all(np.isfinite(res.u)) and math.isfinite(res.energy))
+            except NewtonError as exc:
+                ok, res = False, exc
+            if not ok:
+                cuts += 1
+                if cuts > st.max_cuts or dlam < 1e-6:
+                    self.growth.apply(ones + lam * (target - ones))
+                    raise CoupledError(f"initial equilibrium: Newton failed at growth fraction {trial:.4g} "
+                                       f"after {cuts} cuts of the ramp ({res})")
+                dlam *= 0.5
+                self._say(f"  initial equilibrium: Newton failed at fraction {trial:.4g}; ramp step cut to {dlam:.3g}")
+                continue
+            u_prev, lam_prev = u, lam
+            u, lam = res.u, trial
+            iters += res.iterations
+            self._last_stable = res.stable
+            if lam >= 1.0:
+                break
+            dlam = min(1.0 - lam, 1.5 * dlam)
+        self.u = u
+        self.last_newton_iterations = iters
+        self.newton_total += iters
+        self._say(f"initial equilibrium: {iters} Newton iterations, {cuts} cuts, max s {float(target.max()):.4g}")
+
+    # ---- one step -----------------------------------------------------------------------------
+    @property
+    def done(self) -> bool:
+        """t reached t_final or the pattern is stationary."""
+        return self._at_end() or self.is_stationary
+
+    def _at_end(self) -> bool:
+        tf = self.stepping.t_final
+        return self.t >= tf - 1e-12 * max(1.0, abs(tf))
+
+    @property
+    def is_stationary(self) -> bool:
+        st = self.stepping
+        if st.stationary_rate_c <= 0 or st.stationary_rate_x <= 0:
+            return False
+        return self.stationary_count >= st.stationary_steps
+
+    def advance(self) -> StepRecord:
+        """Make one accepted step (cutting dt as needed); returns its record.
+
+        Raises :class:`CoupledError` (the state is unchanged) when the step cannot be
+        made within ``max_cuts`` cuts or dt would fall below ``dt_min``.
+        """
+        st = self.stepping
+        p = self.params
+        wall0 = time.perf_counter()
+        if self._at_end():
+            raise CoupledError(f"t = {self.t:.6g} has reached t_final = {st.t_final:.6g}")
+        points = self.points
+        source = self.params.source(self.H_vertex)
+        dt = float(self.dt)
+        cuts = 0
+        reason = ""
+        while True:
+            remaining = st.t_final - self.t
+            last = dt >= remaining * (1 - 1e-12)
+            h = remaining if last else dt
+            if h < st.dt_min * (1 - 1e-12) and not last:
+                self.growth.apply(self.s)
+                raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: dt = {h:.3g} fell below dt_min = "
+                                   f"{st.dt_min:.3g} ({reason}); the last accepted state is kept")
+            try:
+                c_new = self.chemistry.step(self.c, h, source=source, points=points)
+            except (ValueError, FloatingPointError, ArithmeticError) as exc:
+                self.growth.apply(self.s)
+                raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: the chemistry step failed: "
+                                   f"{exc}") from exc
+            if not np.all(np.isfinite(c_new)):
+                ok, reason = False, "non-finite concentration"
+                ds = float("inf")
+                s_new = None
+            else:
+                s_new = self.growth.stretch(c_new)
+                ds = float(np.max(np.abs(s_new - self.s))) if len(s_new) else 0.0
+                ok = ds <= st.ds_max * (1 + 1e-12)
+                reason = "" if ok else f"max |Δs| = {ds:.3g} > ds_max = {st.ds_max:.3g}"
+            res = None
+            if ok:
+                self.growth.apply(s_new)
+                start = self.u
+                if st.predictor and self._u_prev is not None and self._h_prev > 0:
+                    start = self._predict(self.u, self._u_prev, h / self._h_prev)
+                try:
+                    res = self._newton(start)
+                    if not (np.all(np.isfinite(res.u)) and math.isfinite(res.energy)):
+                        ok, reason = False, "Newton returned a non-finite state"
+                except NewtonError as exc:
+                    ok, reason = False, f"Newton failed: {exc}"
+                if not ok:
+                    self.growth.apply(self.s)           # back to the accepted rest state
+            if ok:
+                break
+            cuts += 1
+            self.n_rejected += 1
+            if cuts > st.max_cuts:
+                raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g} failed after {st.max_cuts} cuts "
+                                   f"(last dt = {h:.3g}: {reason}); the last accepted state is kept")
+            factor = 0.5
+            if math.isfinite(ds) and ds > st.ds_max:
+                factor = min(0.5, max(0.1, st.safety * st.ds_max / ds))
+            dt = h * factor
+            self._say(f"  step {self.step + 1} t = {self.t:.6g}: cut to dt = {dt:.3g} ({reason})")
+
+        # accept
+        x_old = points
+        c_old = self.c
+        self.c = c_new
+        self._u_prev, self._h_prev = self.u, h
+        self.u = res.u
+        self.s = s_new
+        self.t = st.t_final if last else self.t + h
+        self.step += 1
+        self.last_newton_iterations = res.iterations
+        self.newton_total += res.iterations
+        self._last_stable = res.stable
+        self._last_ds = ds
+        self._update_curvature()
+        c_scale = max(float(np.max(np.abs(self.c))) if len(self.c) else 0.0,
+                      1e-2 * p.c_max if math.isfinite(p.c_max) else 0.0, 1e-300)
+        rate_c = float(np.max(np.abs(self.c - c_old))) / (h * c_scale) if len(self.c) else 0.0
+        rate_x = float(np.max(np.abs(self.points - x_old))) / (h * self._length)
+        self._last_rates = (rate_c, rate_x)
+        if rate_c < st.stationary_rate_c and rate_x < st.stationary_rate_x:
+            self.stationary_count += 1
+        else:
+            self.stationary_count = 0
+        # next step: grow while Δs stays small, never beyond a step that had to be cut
+        grow = st.grow if ds <= 0 else min(st.grow, st.safety * st.ds_max / ds)
+        nxt = h * max(grow, 0.1)
+        if cuts:
+            nxt = min(nxt, h)
+        self.dt = float(min(st.dt_max, max(st.dt_min, nxt)))
+        rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0)
+        self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
+                  f"cuts {cuts} max c {rec.max_c:.4g} max H {rec.max_H:.4g} ds {ds:.3g} "
+                  f"spots {rec.n_spots} {rec.wall_s:.2f}s")
+        return rec
+
+    def record(self, dt: float = 0.0, cuts: int = 0, wall_s: float = 0.0) -> StepRecord:
+        """The :class:`StepRecord` of the current state."""
+        from .analysis import count_spots
+
+        pts = self.points
+        n_spots = count_spots(pts, self.mesh.triangles, self.c, self.params.c_star)
+        return StepRecord(step=self.step, t=float(self.t), dt=float(dt),
+                          newton_iterations=int(self.last_newton_iterations),
+                          cuts=int(cuts), max_c=float(self.c.max()) if len(self.c) else 0.0,
+                          max_H=float(self.H_vertex.max()), min_H=float(self.H_vertex.min()),
+                          max_s=float(self.s.max()), ds=float(self._last_ds), energy=float(self.energy),
+                          n_spots=int(n_spots), rate_c=float(self._last_rates[0]),
+                          rate_x=float(self._last_rates[1]), stable=self._last_stable, wall_s=float(wall_s))
+
+    # ---- loops --------------------------------------------------------------------------------
+    def iterate(self, max_steps: int | None = None):
+        """Generator: one :class:`StepRecord` per accepted step until t_final or stationarity.
+
+        Raises :class:`CoupledError` when a step fails (the loop keeps the last accepted state).
+        """
+        k = 0
+        while not self.done and (max_steps is None or k < max_steps):
+            rec = self.advance()
+            k += 1
+            yield rec
+
+    def run(self, callback=None, *, checkpoint=None, checkpoint_every: int = 10, max_steps: int | None = None,
+            wall_time: float | None = None, keep_records: bool = False) -> RunResult:
+        """Step until t_final, stationarity, ``max_steps`` (default ``stepping.max_steps``) or ``wall_time`` (s).
+
+        ``callback(record, loop)`` after each accepted step (write frames there);
+        ``checkpoint(state_dict, record)`` every ``checkpoint_every`` accepted steps and
+        once at the end, whatever the reason, including a failed step (then with the
+        last accepted state). A failure does not raise: the result has status "failed"
+        and the message. ``keep_records`` keeps all step records in the result.
+        """
+        if int(checkpoint_every) < 1:
+            raise ValueError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
+        max_steps = self.stepping.max_steps if max_steps is None else max_steps
+        t0 = time.perf_counter()
+        k = 0
+        last = None
+        records = []
+        status, message = None, ""
+        dirty = False
+        try:
+            while True:
+                if self._at_end():
+                    status, message = "t_final", f"reached t_final = {self.stepping.t_final:g}"
+                    break
+                if self.is_stationary:
+                    status, message = "stationary", (f"stationary at t = {self.t:.6g}: rates of c and shape "
+                                                     f"{self._last_rates[0]:.2g}, {self._last_rates[1]:.2g} per unit "
+                                                     f"time for {self.stationary_count} steps")
+                    break
+                if max_steps is not None and k >= max_steps:
+                    status, message = "max_steps", f"stopped after {k} steps (max_steps)"
+                    break
+                if wall_time is not None and time.perf_counter() - t0 >= wall_time:
+                    status, message = "wall_time", f"stopped after {time.perf_counter() - t0:.1f} s (wall_time)"
+                    break
+                last = self.advance()
+                k += 1
+                dirty = True
+                if keep_records:
+                    records.append(last)
+                if callback is not None:
+                    callback(last, self)
+                if checkpoint is not None and k % int(checkpoint_every) == 0:
+                    checkpoint(self.state_dict(), last)
+                    dirty = False
+        except CoupledError as exc:
+            status, message = "failed", str(exc)
+            self._say(f"coupled loop stopped: {exc}")
+        if checkpoint is not None and dirty:
+            checkpoint(self.state_dict(), last if last is not None else self.record())
+        return RunResult(status, message, k, float(self.t), time.perf_counter() - t0, last, records)
+
+    # ---- checkpoints --------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """Everything the loop needs to continue bit for bit: numbers and arrays only (no RNG).
+
+        Keys: version, t, dt, step, c (n,), u (free unknowns), u_prev and h_prev (the
+        previous accepted state and step, for the secant predictor; u_prev empty at
+        step 0), stationary_count, n_rejected, newton_total, last_newton_iterations,
+        last_ds, n_vertices, n_free.
+        Store with :func:`femshell.io.save_checkpoint`; parameters go in its meta.
+        """
+        return {"version": STATE_VERSION, "t": float(self.t), "dt": float(self.dt), "step": int(self.step),
+                "c": self.c.copy(), "u": np.asarray(self.u, float).copy(),
+                "stationary_count": int(self.stationary_count), "n_rejected": int(self.n_rejected),
+                "newton_total": int(self.newton_total), "last_newton_iterations": int(self.last_newton_iterations),
+                "last_ds": float(self._last_ds), "n_vertices": int(self.mesh.n_vertices),
+                "u_prev": (np.zeros(0) if self._u_prev is None else np.asarray(self._u_prev, float).copy()),
+                "h_prev": float(self._h_prev),
+                "n_free": int(self.shell.n_free)}
+
+    def load_state_dict(self, state: dict):
+        """Continue from :meth:`state_dict` output (same mesh, parameters and stepping)."""
+        need = ("t", "dt", "step", "c", "u")
+        missing = [k for k in need if k not in state]
+        if missing:
+            raise ValueError(f"state dict lacks {', '.join(missing)}")
+        if int(state.get("version", STATE_VERSION)) > STATE_VERSION:
+            raise ValueError(f"state version {state['version']} is newer than this femshell ({STATE_VERSION})")
+        c = np.array(state["c"], dtype=float)
+        u = np.array(state["u"], dtype=float)
+        if c.shape != (self.mesh.n_vertices,):
+            raise ValueError(f"state c has shape {c.shape}, the mesh has {self.mesh.n_vertices} vertices")
+        if u.shape != (self.shell.n_free,):
+            raise ValueError(f"state u has shape {u.shape}, the shell has {self.shell.n_free} free unknowns "
+                             "(other mesh or boundary conditions?)")
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(u))):
+            raise ValueError("state holds non-finite values")
+        self.t = float(state["t"])
+        self.dt = float(state["dt"])
+        self.step = int(state["step"])
+        self.c = c
+        self.u = u
+        self.stationary_count = int(state.get("stationary_count", 0))
+        self.n_rejected = int(state.get("n_rejected", 0))
+        self.newton_total = int(state.get("newton_total", 0))
+        self.last_newton_iterations = int(state.get("last_newton_iterations", 0))
+        self._last_ds = float(state.get("last_ds", 0.0))
+        u_prev = np.array(state.get("u_prev", np.zeros(0)), dtype=float)
+        self._u_prev = u_prev if u_prev.shape == u.shape else None
+        self._h_prev = float(state.get("h_prev", 0.0)) if self._u_prev is not None else 0.0
+        self._last_rates = (float("nan"), float("nan"))
+        self._last_stable = None
+        self.s = self.growth.stretch(self.c)
+        self.growth.apply(self.s)
+        self._update_curvature()
+
+    @classmethod
+    def from_state_dict(cls, mesh, params: MechanochemicalModel, state: dict,
+                        stepping: TimeStepping | None = None, boundary_conditions=(), log=None) -> "CoupledLoop":
+        """A loop that continues from ``state`` (no initial equilibrium is computed)."""
+        loop = cls(mesh, params, stepping, c0=None, boundary_conditions=boundary_conditions,
+                   equilibrate=False, log=log)
+        loop.load_state_dict(state)
+        return loop

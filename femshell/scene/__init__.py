@@ -1,0 +1,22 @@
+"""Scenes: a TOML file -> the parts that scene needs and nothing else -> a run directory.
+
+* :mod:`.schema`: the file format, validation with one-line errors, ``--set`` overrides;
+* :mod:`.build`: the mesh, the shell, the time loop, ``--dry-run`` plans;
+* :mod:`.runner`: ``femshell run``: progress, checkpoints, ``--resume``, summary, pictures.
+
+Example
+-------
+>>> from femshell.scene import load_scene, list_scenes
+>>> "default" in list_scenes()
+True
+>>> sc = load_scene("clamped-plate-buckling", ["mesh.edge_length=0.25"])
+>>> sc.kind, sc["growth"]["law"]
+('continuation', 'uniform')
+"""
+
+from .build import embedded_scene_path, list_scenes, load_scene, make_mesh, plan
+from .runner import RunDirError, run_scene
+from .schema import Scene, SceneError
+
+__all__ = ["run_scene", "list_scenes", "load_scene", "make_mesh", "plan", "embedded_scene_path", "Scene",
+           "SceneError", "RunDirError"]

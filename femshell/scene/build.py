@@ -1,0 +1,482 @@
+"""From a validated scene to the objects it needs, and nothing else.
+
+* :func:`load_scene`: a TOML file or an embedded scene name (+ ``--set`` overrides) ->
+  :class:`~femshell.scene.schema.Scene` (validated; nothing is built).
+* :func:`make_mesh`: the mesh (gmsh generator or file); boundary-curve names of mesh
+  files are checked here against the scene's conditions and loads.
+* :func:`plan`: what a run will build, as lines for ``--dry-run`` and a dict of flags;
+  builds no shell model, no chemistry, no solver.
+* :func:`shell_parts` (static, continuation): ShellModel with boundary conditions and
+  loads, and the rest state as a function of the growth. No chemistry is built.
+* :func:`time_loop` (time): the :class:`~femshell.coupled.CoupledLoop` (its chemistry builds
+  a diffusion operator only for D > 0). No continuation machinery is imported.
+
+Units: design.md section 3 (lengths in cell sizes, time in 1/β, E = 1 by default).
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .schema import Scene, SceneError, apply_overrides, parse_scene, validate
+
+__all__ = ["load_scene", "list_scenes", "embedded_scene_path", "make_mesh", "plan", "boundary_conditions",
+           "make_loads", "shell_parts", "ShellParts", "time_loop", "count_unknowns"]
+
+AXIS = {"x": 0, "y": 1, "z": 2}
+
+
+# ----------------------------------------------------------------------------- finding scenes
+
+def _scenes_dir():
+    return resources.files("femshell") / "scenes"
+
+
+def list_scenes() -> dict:
+    """Embedded scenes: name -> one-line description (sorted by name, ``default`` first)."""
+    import tomllib
+
+    out = {}
+    d = _scenes_dir()
+    names = sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".toml"))
+    names.sort(key=lambda n: (n != "default", n))
+    for n in names:
+        try:
+            desc = tomllib.loads((d / f"{n}.toml").read_text(encoding="utf-8")).get("description", "")
+        except Exception as exc:  # a broken embedded scene is a bug, but listing must still work
+            desc = f"(unreadable: {exc})"
+        out[n] = str(desc).strip()
+    return out
+
+
+def embedded_scene_path(name: str):
+    """The path of an embedded scene, or None."""
+    p = _scenes_dir() / f"{name}.toml"
+    return p if p.is_file() else None
+
+
+def load_scene(scene, overrides=()) -> Scene:
+    """A validated scene from a .toml path or an embedded scene name, with ``--set`` overrides.
+
+    Raises :class:`SceneError` (a ValueError) with one line per problem.
+    """
+    import difflib
+
+    text_path = Path(str(scene)).expanduser()
+    if str(scene).endswith(".toml") or text_path.is_file() or "/" in str(scene):
+        if not text_path.is_file():
+            raise SceneError(f"{scene}: no such scene file")
+        label = str(scene)
+        try:
+            text = text_path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise SceneError(f"{label}: cannot read the scene file ({exc})") from None
+        source, name, base = text_path.resolve(), text_path.stem, text_path.resolve().parent
+    else:
+        p = embedded_scene_path(str(scene))
+        if p is None:
+            names = list(list_scenes())
+            s = difflib.get_close_matches(str(scene), names, n=1, cutoff=0.5)
+            hint = f"; did you mean '{s[0]}'?" if s else ""
+            raise SceneError(f"{scene}: no such scene file or embedded scene{hint} (embedded: {', '.join(names)}; "
+                             "`femshell scenes` lists them)")
+        label = f"{scene}.toml"
+        text = p.read_text(encoding="utf-8")
+        source, name, base = Path(str(p)), str(scene), Path.cwd()
+    raw = parse_scene(text, label)
+    raw = apply_overrides(raw, overrides, label)
+    return validate(raw, name=name, label=label, source=source, base_dir=base)
+
+
+# ----------------------------------------------------------------------------- mesh
+
+def make_mesh(scene: Scene):
+    """The scene's mesh (gmsh or file); SceneError for generator errors and unknown curve names."""
+    from ..mesh import generators as g
+
+    m = dict(scene["mesh"])
+    kind = m.pop("kind")
+    try:
+        if kind == "file":
+            from ..mesh.io import read_mesh
+            mesh = read_mesh(m["file"])
+        else:
+            kw = {k: v for k, v in m.items() if v is not None}
+            if kind == "hemisphere" and "hole_angle" in kw:
+                kw["hole_angle"] = math.radians(kw["hole_angle"])
+            if kind == "cylinder" and "angle_range" in kw:
+                kw["angle_range"] = tuple(math.radians(a) for a in kw["angle_range"])
+            if kind in ("sphere", "hemisphere", "disk", "annulus", "cylinder") and "structured" in kw:
+                kw.pop("structured")
+            if kind in ("plate", "strip") and not kw.get("structured"):
+                kw.pop("diagonal", None)
+            mesh = getattr(g, kind)(**kw)
+    except (ValueError, RuntimeError, OSError) as exc:
+        raise SceneError(f"{scene.label}: [mesh] {kind}: {exc}") from None
+    if kind == "file":
+        curves = tuple(mesh.topology.boundary_edge_groups)
+        errors = []
+        for sec, items in (("boundary", scene["boundary"]), ("loads", scene["loads"])):
+            for i, it in enumerate(items):
+                c = it.get("curve")
+                if c is not None and c not in curves:
+                    errors.append(f"{scene.label}: [[{sec}]] #{i + 1} curve = \"{c}\" is not a boundary curve of "
+                                  f"{Path(m['file']).name} (curves: {', '.join(curves) or 'none: the mesh is closed'})")
+        if errors:
+            raise SceneError(errors)
+    return mesh
+
+
+def boundary_conditions(scene: Scene, mesh) -> list:
+    from ..shell import Clamped, Prescribed, SimplySupported, Symmetry
+
+    out = []
+    for bc in scene["boundary"]:
+        t = bc["type"]
+        if t == "clamped":
+            out.append(Clamped(bc["curve"]))
+        elif t == "simply_supported":
+            out.append(SimplySupported(bc["curve"]))
+        elif t == "symmetry":
+            out.append(Symmetry(bc["axis"], bc["value"]))
+        else:
+            comps = tuple(sorted({AXIS[c] for c in bc["components"]}))
+            disp = tuple(bc["displacement"])
+            out.append(Prescribed(curve=bc["curve"], components=comps, displacement=disp))
+    return out
+
+
+def make_loads(scene: Scene, mesh) -> list:
+    from ..shell import (AreaLoad, DeadLoad, DeadPressure, EdgeForce, EdgeMoment, FollowerPressure,
+                         PointForce)
+
+    out = []
+    for ld in scene["loads"]:
+        t = ld["type"]
+        if t == "point_force":
+            if ld.get("point") is not None:
+                v = int(np.argmin(np.linalg.norm(mesh.points - np.asarray(ld["point"]), axis=1)))
+                out.append(PointForce(mesh, [v], ld["force"]))
+            else:
+                verts = mesh.topology.boundary_vertex_groups[ld["curve"]]
+                out.append(PointForce(mesh, verts, ld["force"]))
+        elif t == "area_load":
+            out.append(AreaLoad(mesh, ld["traction"]))
+        elif t == "edge_force":
+            out.append(EdgeForce(mesh, ld["curve"], ld["force"]))
+        elif t == "dead_pressure":
+            out.append(DeadPressure(mesh, ld["pressure"]))
+        elif t == "follower_pressure":
+            out.append(FollowerPressure(ld["pressure"]))
+        elif t == "edge_moment":
+            out.append(EdgeMoment(ld["curve"], ld["moment"]))
+        else:  # pragma: no cover - validated
+            raise SceneError(f"{scene.label}: unknown load type {t}")
+    assert all(isinstance(x, (DeadLoad, FollowerPressure, EdgeMoment)) for x in out)
+    return out
+
+
+def count_unknowns(mesh, bcs) -> dict:
+    """Free unknowns of the shell (as ShellModel counts them) without building the model."""
+    from ..shell.boundary import rigid_body_pins
+    from ..shell.element import CLAMPED, FREE, INTERIOR, SYMMETRY
+
+    t = mesh.topology
+    n, ne = mesh.n_vertices, t.n_edges
+    fixed = np.zeros((n, 3), bool)
+    values = mesh.points.copy()
+    kind = np.where(t.edge_faces[:, 1] >= 0, INTERIOR, FREE)
+    direction = np.zeros((ne, 3))
+    for bc in bcs:
+        bc.apply(mesh, fixed, values, kind, direction)
+    pinned = 0
+    if not fixed.any():
+        for v, c in rigid_body_pins(mesh.points):
+            fixed[v, c] = True
+        pinned = 6
+    fixed_theta = int(((kind == CLAMPED) | (kind == SYMMETRY)).sum())
+    total = 3 * n + ne
+    free = total - int(fixed.sum()) - fixed_theta
+    return {"total": total, "free": free, "positions_fixed": int(fixed.sum()), "angles_fixed": fixed_theta,
+            "rigid_pins": pinned}
+
+
+# ----------------------------------------------------------------------------- growth of mechanics scenes
+
+def centroid_radius(mesh) -> np.ndarray:
+    """Distance of each triangle's centroid from the z axis (the disk test's r)."""
+    c = mesh.points[mesh.triangles].mean(axis=1)
+    return np.hypot(c[:, 0], c[:, 1])
+
+
+def stretch_field(growth: dict, mesh, strain=None, inner_radius=None) -> np.ndarray:
+    """Element stretches s (m,) of a mechanics growth law (design.md 1.1, 1.6)."""
+    m = mesh.n_triangles
+    law = growth["law"]
+    g = growth.get("strain", 0.0) if strain is None else strain
+    if law in ("none", None):
+        return np.ones(m)
+    if law == "uniform":
+        return np.full(m, 1.0 + g)
+    r2 = growth["inner_radius"] if inner_radius is None else inner_radius
+    r = centroid_radius(mesh)
+    w = growth.get("transition", 0.0)
+    if w > 0:
+        from scipy.special import expit
+        frac = expit(2.0 * (r2 - r) / w)
+    else:
+        frac = (r < r2).astype(float)
+    return 1.0 + g * frac
+
+
+class ShellParts:
+    """The mechanics of a static or continuation scene.
+
+    ``model`` (ShellModel with conditions and loads), ``a0``, ``b0`` (rest forms at s = 1),
+    ``k_ref`` (per-element reference of H), ``rest_for(s)`` -> RestState, ``apply(s)``.
+    """
+
+    def __init__(self, scene: Scene, mesh):
+        from ..geometry import mean_curvature
+        from ..shell import Material, ShellModel, flat_rest_state
+
+        self.scene = scene
+        self.mesh = mesh
+        mat, sh = scene["material"], scene["shell"]
+        self.h0 = sh["thickness"]
+        self.mode = sh["thickness_mode"]
+        self.bcs = boundary_conditions(scene, mesh)
+        self.loads = make_loads(scene, mesh)
+        try:
+            self.model = ShellModel(mesh, Material(E=mat["E"], nu=mat["nu"]),
+                                    flat_rest_state(mesh.points, mesh.triangles, self.h0), self.bcs, self.loads)
+        except ValueError as exc:
+            raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
+        a0, b_mesh = self.model.fundamental_forms(self.model.initial_unknowns())
+        self.a0 = np.array(a0, dtype=float)
+        k0 = sh["natural_curvature"]
+        if k0 == "mesh":
+            self.b0 = np.array(b_mesh, dtype=float)
+            self.k_ref = mean_curvature(self.a0, self.b0, 0.0)
+        else:
+            self.b0 = float(k0) * self.a0
+            self.k_ref = np.full(len(self.a0), float(k0))
+        self.s = np.ones(mesh.n_triangles)
+
+    def rest_for(self, s):
+        from ..growth import target_thickness
+        from ..shell import RestState
+
+        s = np.asarray(s, dtype=float)
+        s2 = (s * s)[:, None, None]
+        return RestState(s2 * self.a0, s2 * self.b0, target_thickness(self.h0, s, self.mode))
+
+    def apply(self, s):
+        self.s = np.asarray(s, dtype=float)
+        self.model.set_rest_state(self.rest_for(self.s))
+
+    def mean_curvature(self, u):
+        from ..geometry import element_to_vertex, mean_curvature
+
+        a, b = self.model.fundamental_forms(u)
+        H = mean_curvature(np.asarray(a), np.asarray(b), self.k_ref)
+        return H, element_to_vertex(H, self.model.positions(u), self.mesh.triangles)
+
+
+def shell_parts(scene: Scene, mesh) -> ShellParts:
+    return ShellParts(scene, mesh)
+
+
+# ----------------------------------------------------------------------------- the time loop
+
+def coupled_parameters(scene: Scene):
+    """MechanochemicalModel, TimeStepping and the initial condition of a time scene."""
+    from ..coupled import InitialSpot, MechanochemicalModel, TimeStepping
+
+    mat, sh, gr, ch, ini, so = (scene[k] for k in ("material", "shell", "growth", "chemistry", "initial", "solver"))
+    k0 = sh["natural_curvature"]
+    try:
+        params = MechanochemicalModel(
+            nu=mat["nu"], E=mat["E"], h0=sh["thickness"], thickness_mode=sh["thickness_mode"],
+            k0=None if k0 == "mesh" else float(k0), lam_max=gr["lam_max"], lam_min=gr["lam_min"],
+            lam0=gr["lam0"], b=gr["b"], c_star=gr["c_star"], w=ch["w"], Hs=ch["Hs"], beta=ch["beta"], D=ch["D"],
+            rest_curvature="mesh" if k0 == "mesh" else "k0")
+    except ValueError as exc:
+        raise SceneError(f"{scene.label}: [growth]/[chemistry]: {exc}") from None
+    kw = {k: so[k] for k in ("t_final", "dt_initial", "dt_min", "dt_max", "ds_max", "grow", "safety", "max_cuts",
+                             "stationary_rate_c", "stationary_rate_x", "stationary_steps", "newton_atol_strain",
+                             "ramp_ds", "max_steps")}
+    if so.get("newton_rtol") is not None:
+        kw["newton_rtol"] = so["newton_rtol"]
+    if so.get("newton_max_iter") is not None:
+        kw["newton_max_iter"] = so["newton_max_iter"]
+    kw["newton_backend"] = so["backend"]
+    try:
+        stepping = TimeStepping(**kw)
+    except ValueError as exc:
+        raise SceneError(f"{scene.label}: [solver] {exc}") from None
+    c0 = None
+    if ini["kind"] in ("spot", "spots"):
+        c0 = InitialSpot(amplitude=ini["amplitude"], width=ini["width"], elongation=ini["elongation"],
+                         pole=tuple(ini["pole"]), direction=None if ini["direction"] is None else tuple(ini["direction"]),
+                         distance=ini["distance"])
+    return params, stepping, c0
+
+
+def spot_centres(ini: dict) -> np.ndarray:
+    """Unit directions of the spots of ``[initial] kind = "spots"`` (k, 3).
+
+    "icosahedron": the 12 vertices of a regular icosahedron, turned so that one of them
+    is ``pole``; "random": ``count`` directions uniform on the sphere (``seed``), the first
+    one moved to ``pole``.
+    """
+    pole = np.asarray(ini["pole"], float)
+    pole = pole / np.linalg.norm(pole)
+    if ini["layout"] == "icosahedron":
+        phi = (1 + math.sqrt(5)) / 2
+        v = np.array([[-1, phi, 0], [1, phi, 0], [-1, -phi, 0], [1, -phi, 0], [0, -1, phi], [0, 1, phi],
+                      [0, -1, -phi], [0, 1, -phi], [phi, 0, -1], [phi, 0, 1], [-phi, 0, -1], [-phi, 0, 1]], float)
+    else:
+        rng = np.random.default_rng(int(ini["seed"]))
+        v = rng.standard_normal((int(ini["count"]), 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    a = v[0] if ini["layout"] == "random" else v[5]
+    # rotation taking a to the pole (Rodrigues)
+    w = np.cross(a, pole)
+    s, c = np.linalg.norm(w), float(a @ pole)
+    if s < 1e-12:
+        rot = np.eye(3) if c > 0 else -np.eye(3)
+    else:
+        k = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        rot = np.eye(3) + k + k @ k * ((1 - c) / s**2)
+    return v @ rot.T
+
+
+def initial_concentration(scene: Scene, mesh, params):
+    """The c0 given to the time loop: an InitialSpot, a vertex array (several spots) or None."""
+    from ..coupled import gaussian_spot
+
+    ini = scene["initial"]
+    _, _, spot = coupled_parameters(scene)
+    if ini["kind"] != "spots":
+        return spot
+    amp = params.c_max if ini["amplitude"] is None else ini["amplitude"]
+    width = params.h0 if ini["width"] is None else ini["width"]
+    pts = np.asarray(mesh.points, float)
+    # each vertex takes its largest spot (overlapping spots do not add up above the amplitude)
+    return np.max([gaussian_spot(pts, amp, width, pole=tuple(p), elongation=ini["elongation"],
+                                 distance=ini["distance"]) for p in spot_centres(ini)], axis=0)
+
+
+def time_loop(scene: Scene, mesh, state=None, log=None):
+    """The CoupledLoop of a time scene: a fresh one (initial equilibrium computed) or from ``state``."""
+    from ..coupled import CoupledLoop
+
+    params, stepping, _ = coupled_parameters(scene)
+    bcs = boundary_conditions(scene, mesh)
+    if state is not None:
+        return CoupledLoop.from_state_dict(mesh, params, state, stepping, boundary_conditions=bcs, log=log)
+    c0 = initial_concentration(scene, mesh, params)
+    return CoupledLoop(mesh, params, stepping, c0=c0, boundary_conditions=bcs, log=log)
+
+
+# ----------------------------------------------------------------------------- dry run
+
+def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
+    """(lines, flags): what a run of ``scene`` builds. Builds the mesh if not given, nothing else."""
+    if mesh is None:
+        mesh = make_mesh(scene)
+    d = scene.data
+    kind = scene.kind
+    t = mesh.topology
+    bcs = boundary_conditions(scene, mesh)
+    try:
+        unk = count_unknowns(mesh, bcs)
+    except ValueError as exc:
+        raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
+    curves = list(t.boundary_edge_groups)
+    lines = [f"scene '{scene.name}' ({scene.source or scene.label}): {d['description'] or '(no description)'}"]
+    m = d["mesh"]
+    args = ", ".join(f"{k}={v}" for k, v in m.items() if k != "kind" and v is not None)
+    lines.append(f"  mesh       {m['kind']}({args}): {mesh.n_vertices} vertices, {mesh.n_triangles} triangles, "
+                 f"{t.n_edges} edges; " + (f"boundary curves {', '.join(curves)}" if curves else "closed (no boundary)"))
+    mat, sh = d["material"], d["shell"]
+    lines.append(f"  shell      Kirchhoff-Love mid-edge element, E={mat['E']:g} nu={mat['nu']:g} h={sh['thickness']:g} "
+                 f"thickness_mode={sh['thickness_mode']} rest curvature={sh['natural_curvature']}")
+    lines.append(f"  unknowns   {unk['free']} free of {unk['total']} (3 per vertex + 1 per edge; "
+                 f"{unk['positions_fixed']} position components and {unk['angles_fixed']} edge angles fixed"
+                 + (", rigid-body motions pinned" if unk["rigid_pins"] else "") + ")")
+    bl = ", ".join(f"{b['type']}({b.get('curve') or b.get('axis')})" for b in d["boundary"]) or "none (free)"
+    lines.append(f"  boundary   {bl}")
+    if d["loads"]:
+        ll = ", ".join(f"{x['type']}" + (f"({x['curve']})" if x.get("curve") else "") for x in d["loads"])
+        lines.append(f"  loads      {ll} (times the load factor)")
+    gr = d["growth"]
+    law = gr["law"]
+    if law == "contractility":
+        lines.append(f"  growth     contractility: Λmax={gr['lam_max']:g} Λmin={gr['lam_min']:g} "
+                     f"Λ0={gr['lam0'] if gr['lam0'] is not None else gr['lam_max']:g} b={gr['b']:g} c*={gr['c_star']:g}")
+    elif law == "uniform":
+        lines.append(f"  growth     uniform: s = 1 + {gr['strain']:g}")
+    elif law == "inner_region":
+        lines.append(f"  growth     inner region r < {gr['inner_radius']:g}: s = 1 + {gr['strain']:g}"
+                     + (f", smooth step of width {gr['transition']:g}" if gr["transition"] else ""))
+    else:
+        lines.append("  growth     none")
+    operators = ["shell energy, gradient and Hessian (JAX, sparse assembly)", "sparse LDLᵀ (Newton, inertia)"]
+    flags = {"mesh": True, "shell": True, "chemistry": False, "diffusion_operator": False, "time_loop": False,
+             "continuation": False, "loads": bool(d["loads"]), "n_vertices": mesh.n_vertices,
+             "n_triangles": mesh.n_triangles, "unknowns": unk["free"], "solver": kind}
+    so = d["solver"]
+    if kind == "time":
+        ch, ini = d["chemistry"], d["initial"]
+        flags["chemistry"] = True
+        flags["time_loop"] = True
+        if ch["D"] > 0:
+            flags["diffusion_operator"] = True
+            operators.append("P1 Laplace-Beltrami stiffness + lumped mass on the deformed surface (D > 0)")
+            chem = f"D={ch['D']:g}: implicit Euler with the P1 Laplace-Beltrami operator"
+        else:
+            chem = "D=0: exact exponential update per vertex (no diffusion operator built)"
+        lines.append(f"  chemistry  {chem}; w={ch['w']:g} Hs={ch['Hs']:g} beta={ch['beta']:g} "
+                     f"(c_max = {ch['w'] * ch['Hs'] / ch['beta'] if ch['beta'] else math.inf:g})")
+        if ini["kind"] == "spots":
+            n = 12 if ini["layout"] == "icosahedron" else ini["count"]
+            lines.append(f"  initial    {n} Gaussian spots ({ini['layout']}, one at pole {tuple(ini['pole'])}): "
+                         f"amplitude {ini['amplitude'] if ini['amplitude'] is not None else 'c_max'} width "
+                         f"{ini['width'] if ini['width'] is not None else sh['thickness']}")
+        elif ini["kind"] == "spot":
+            lines.append(f"  initial    Gaussian spot at pole {tuple(ini['pole'])}: amplitude "
+                         f"{ini['amplitude'] if ini['amplitude'] is not None else 'c_max'} width "
+                         f"{ini['width'] if ini['width'] is not None else sh['thickness']} elongation "
+                         f"{ini['elongation']:g}")
+        else:
+            lines.append("  initial    c = 0")
+        lines.append(f"  solver     mechanochemical time loop: t_final={so['t_final']:g}, dt in [{so['dt_min']:g}, "
+                     f"{so['dt_max']:g}], ds_max={so['ds_max']:g}, stationary below rates "
+                     f"{so['stationary_rate_c']:g}/{so['stationary_rate_x']:g} for {so['stationary_steps']} steps; "
+                     "Newton to stable equilibria")
+    elif kind == "static":
+        lines.append(f"  solver     static: {so['steps']} increments of the load factor / growth from 0 to 1, "
+                     f"Newton to {'stable ' if so['stable'] else ''}equilibria (up to {so['max_cuts']} cuts)")
+    else:
+        flags["continuation"] = True
+        operators.append("bordered solves, shift-invert Lanczos for the smallest eigenvalues")
+        lines.append(f"  solver     pseudo-arclength continuation in {so['parameter']} from "
+                     f"{so['start'] if so['start'] is not None else 'the scene value'} to {so['stop']}, ds={so['ds']:g}, "
+                     f"max {so['max_steps']} steps; folds/branch points located: {so['detect']}"
+                     + ("; then the branch of the first branch point" if so["switch_branch"] else ""))
+    lines.append(f"  operators  {'; '.join(operators)}")
+    out = d["output"]
+    lines.append(f"  output     frame every {out['every']} step(s): series.pvd + VTU with {', '.join(out['fields'])}; "
+                 f"checkpoint every {out['checkpoint_every']} step(s); summary.json"
+                 + ("; pictures" if out["pictures"] else "") + ("; movie" if out["movie"] else ""))
+    not_built = [name for name, on in (("chemistry", flags["chemistry"]), ("diffusion operator",
+                                        flags["diffusion_operator"]), ("time loop", flags["time_loop"]),
+                                       ("continuation", flags["continuation"]), ("loads", flags["loads"])) if not on]
+    lines.append(f"  not built  {', '.join(not_built) or '-'}")
+    return lines, flags

@@ -1,0 +1,1288 @@
+r"""Running a scene: the output directory, progress, checkpoints, resume, summary and pictures.
+
+Output directory ``DIR`` (``--out``, default ``./<scene name>-out``)::
+
+    scene.toml          the complete scene as run (every default filled in)
+    series.pvd          ParaView time series; one series_NNNNNN.vtu per frame
+    checkpoint.npz      the last accepted state (+ checkpoint.npz.prev, the one before)
+    summary.json        scene, parameters, status, steps, wall time, final measures
+    pictures/           top.png (coloured by c or |displacement|), side.png (by radius),
+                        bifurcation.png (continuation)
+    branch.csv          continuation only: one row per accepted and special point
+    special/            continuation only: the special points with their critical modes
+
+Policy (design.md section 4; every file is written atomically by :mod:`femshell.io`):
+
+* A new run refuses a ``DIR`` that already holds a run (finished or not), unless
+  ``--resume`` (continue it) or ``--overwrite`` (delete femshell's files there and start
+  again; other files are left alone) is given. A scene error never touches ``DIR``.
+* A checkpoint is written after every ``output.checkpoint_every`` accepted steps (1 by
+  default): ``kill -9`` loses at most the step in progress. Ctrl-C (SIGINT) and SIGTERM
+  stop after writing a checkpoint of the last accepted state and a summary with status
+  "interrupted" (exit code 130).
+* ``--resume`` continues from the checkpoint; frames written after it are dropped and
+  written again. The scene must be the one in ``DIR/scene.toml`` except for
+  ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop`` and
+  ``solver.switch_stop`` (so a finished run can be extended). For the time loop and the
+  static solver the resumed run is bit for bit the uninterrupted one; a continuation
+  restarts its branch from the last accepted point along the secant (same branch, not the
+  same steps).
+* A step that fails (Newton diverges, dt below dt_min, the continuation's step below
+  ds_min) ends the run with status "failed", the message, a checkpoint of the last
+  accepted state and exit code 1. Nothing non-finite is ever written.
+
+Exit codes: 0 finished (or paused by ``--max-steps``), 1 failed, 2 bad input, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import shutil
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import io as fio
+from .build import load_scene, make_mesh, plan, shell_parts, stretch_field, time_loop
+from .schema import Scene, SceneError, dump_toml, parse_scene, validate
+
+__all__ = ["run_scene", "RunDirError", "RUN_FILES"]
+
+CHECKPOINT = "checkpoint.npz"
+SCENE_FILE = "scene.toml"
+SERIES = "series"
+LOCK = ".femshell.lock"
+#: femshell's files in a run directory (what --overwrite deletes)
+RUN_FILES = (SCENE_FILE, CHECKPOINT, CHECKPOINT + ".prev", fio.SUMMARY_NAME, f"{SERIES}.pvd", "branch.csv",
+             "movie.gif", "movie.mp4")
+RUN_DIRS = ("pictures", "special")
+#: keys that may change between a run and its --resume
+RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop")}
+FINAL = ("t_final", "stationary", "done", "lam_stop", "max_steps_branch", "fold", "branch", "callback")
+
+
+class RunDirError(ValueError):
+    """The output directory cannot be used as asked (exit code 2)."""
+
+
+class StepFailure(RuntimeError):
+    """A step could not be made; the runner keeps the last accepted state."""
+
+
+def _hms(sec):
+    if not math.isfinite(sec):
+        return "?"
+    sec = int(round(sec))
+    h, r = divmod(sec, 3600)
+    m, s = divmod(r, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+def _finite_or_none(v):
+    if isinstance(v, (float, np.floating)):
+        return float(v) if math.isfinite(v) else None
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    return v
+
+
+# ----------------------------------------------------------------------------- the run directory
+
+class RunDir:
+    def __init__(self, path: Path):
+        self.path = Path(path)
+
+    def has_run(self) -> bool:
+        return self.path.is_dir() and any((self.path / f).exists() for f in RUN_FILES[:5])
+
+    def describe(self) -> str:
+        s = self.summary()
+        if s:
+            return f"a run of scene '{s.get('scene')}' with status '{s.get('status')}' ({s.get('steps')} steps)"
+        if (self.path / CHECKPOINT).exists():
+            return "an unfinished run (a checkpoint)"
+        return "femshell output"
+
+    def summary(self):
+        import json
+        p = self.path / fio.SUMMARY_NAME
+        if not p.exists():
+            return None
+        try:
+            return json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+
+    def clear(self):
+        """Delete femshell's files of an earlier run (never other files)."""
+        for f in RUN_FILES:
+            with contextlib.suppress(FileNotFoundError):
+                (self.path / f).unlink()
+        for p in self.path.glob(f"{SERIES}_*.vtu"):
+            p.unlink()
+        for d in RUN_DIRS:
+            if (self.path / d).is_dir():
+                shutil.rmtree(self.path / d)
+
+    @contextlib.contextmanager
+    def lock(self):
+        """One run per directory: ``DIR/.femshell.lock`` holds the pid; stale locks (dead pid) are taken over."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        p = self.path / LOCK
+        for _ in range(2):
+            try:
+                fd = os.open(p, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+                break
+            except FileExistsError:
+                try:
+                    pid = int(p.read_text().strip() or "0")
+                except (OSError, ValueError):
+                    pid = 0
+                alive = False
+                if pid > 0:
+                    try:
+                        os.kill(pid, 0)
+                        alive = True
+                    except ProcessLookupError:
+                        alive = False
+                    except PermissionError:
+                        alive = True
+                if alive and pid != os.getpid():
+                    raise RunDirError(f"{self.path} is in use by a running femshell (pid {pid}); wait for it or "
+                                      f"stop it, or choose another --out") from None
+                with contextlib.suppress(FileNotFoundError):
+                    p.unlink()
+        else:  # pragma: no cover
+            raise RunDirError(f"{self.path}: cannot take the lock {p}")
+        os.write(fd, str(os.getpid()).encode())
+        os.close(fd)
+        try:
+            yield
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                p.unlink()
+
+
+# ----------------------------------------------------------------------------- progress
+
+class Progress:
+    """Progress lines with elapsed time and an estimate of what remains."""
+
+    def __init__(self, out, interval=0.0, quiet=False, wall_before=0.0):
+        self.out = out
+        self.interval = interval
+        self.quiet = quiet
+        self.t0 = time.perf_counter()
+        self.wall_before = wall_before
+        self.history = []     # (wall, fraction)
+        self.last_print = -math.inf
+
+    @property
+    def elapsed(self):
+        return time.perf_counter() - self.t0
+
+    def say(self, text):
+        if not self.quiet:
+            print(text, file=self.out, flush=True)
+
+    def step(self, text, fraction=None, force=False):
+        now = self.elapsed
+        if fraction is not None and math.isfinite(fraction):
+            self.history.append((now, float(fraction)))
+            self.history = self.history[-12:]
+        if not force and now - self.last_print < self.interval:
+            return
+        self.last_print = now
+        eta = self.remaining()
+        tail = f"{_hms(self.wall_before + now)} elapsed" + (f", ~{_hms(eta)} left" if eta is not None else "")
+        self.say(f"{text}  [{tail}]")
+
+    def remaining(self):
+        if len(self.history) < 2:
+            return None
+        (w0, f0), (w1, f1) = self.history[0], self.history[-1]
+        if f1 >= 1.0:
+            return 0.0
+        if not f1 > f0 or w1 <= w0:
+            return None
+        return (1.0 - f1) * (w1 - w0) / (f1 - f0)
+
+
+# ----------------------------------------------------------------------------- output fields
+
+def energy_fields(model, u):
+    mem, bend = model.energy_parts(u)
+    area = np.asarray(model.rest.area, dtype=float)
+    return mem / area, bend / area
+
+
+def frame_fields(wanted, *, model, u, s, H_vertex, c=None, contractility=None):
+    """(point_data, cell_data) of one frame, restricted to ``wanted``."""
+    pts = model.positions(u)
+    pd, cd = {}, {}
+    if "c" in wanted and c is not None:
+        pd["c"] = c
+    if "H" in wanted:
+        pd["H"] = H_vertex
+    if "Lambda" in wanted and c is not None:
+        pd["Lambda"] = contractility(c)
+    if "displacement" in wanted:
+        pd["displacement"] = pts - model.mesh.points
+    if "stretch" in wanted:
+        cd["stretch"] = s
+    if "thickness" in wanted:
+        cd["thickness"] = np.asarray(model.rest.thickness, dtype=float)
+    if any(f in wanted for f in ("energy_density", "membrane_energy_density", "bending_energy_density")):
+        mem, bend = energy_fields(model, u)
+        if "energy_density" in wanted:
+            cd["energy_density"] = mem + bend
+        if "membrane_energy_density" in wanted:
+            cd["membrane_energy_density"] = mem
+        if "bending_energy_density" in wanted:
+            cd["bending_energy_density"] = bend
+    return pts, pd, cd
+
+
+# ----------------------------------------------------------------------------- runners
+
+class BaseRunner:
+    """The loop shared by the three solver kinds: frames, checkpoints, progress, summary, pictures."""
+
+    kind = "?"
+
+    def __init__(self, scene: Scene, mesh, rd: RunDir, *, progress: Progress, max_steps=None, verbose=False):
+        self.scene = scene
+        self.mesh = mesh
+        self.rd = rd
+        self.p = progress
+        self.max_steps = max_steps
+        self.verbose = verbose
+        self.out = scene["output"]
+        self.step = 0                 # accepted steps in total (all invocations)
+        self.steps_this_run = 0
+        self.status = "running"
+        self.message = ""
+        self.newton_total = 0
+        self.wall_before = 0.0
+        self.resumes = 0
+        self.last_frame_step = -1
+        self.last_ckpt_step = -1
+
+    # --- to implement
+    def initialise(self):
+        raise NotImplementedError
+
+    def restore(self, state, meta):
+        raise NotImplementedError
+
+    def advance(self):
+        """One accepted step; returns the progress text and the fraction done (or None)."""
+        raise NotImplementedError
+
+    def finished(self) -> bool:
+        raise NotImplementedError
+
+    def series_time(self) -> float:
+        raise NotImplementedError
+
+    def frame(self):
+        raise NotImplementedError
+
+    def state(self) -> dict:
+        raise NotImplementedError
+
+    def final(self) -> dict:
+        return {}
+
+    def pictures(self) -> list:
+        return []
+
+    def loop(self):
+        """Step until finished (subclasses whose solver drives the loop override this)."""
+        while not self.finished():
+            if self.max_steps is not None and self.steps_this_run >= self.max_steps:
+                self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps (--max-steps); "
+                                                       "continue with --resume")
+                return
+            text, frac = self.advance()
+            self.accepted(text, frac)
+
+    # --- shared
+    def accepted(self, text, fraction):
+        self.step += 1
+        self.steps_this_run += 1
+        if self.step % self.out["every"] == 0:
+            self.write_frame()
+        if self.step % self.out["checkpoint_every"] == 0:
+            self.checkpoint()
+        self.p.step(text, fraction)
+
+    def write_frame(self):
+        t, pts, pd, cd = self.frame()
+        self.writer.write(t, points=pts, point_data=pd, cell_data=cd)
+        self.last_frame_step = self.step
+
+    def checkpoint(self):
+        meta = {"kind": self.kind, "step": self.step, "series_time": self.series_time(),
+                "wall_s": self.wall_before + self.p.elapsed, "newton_total": self.newton_total,
+                "resumes": self.resumes, "scene": self.scene.name}
+        meta.update(self.extra_meta())
+        fio.save_checkpoint(self.rd.path / CHECKPOINT, self.state(), meta)
+        self.last_ckpt_step = self.step
+
+    def extra_meta(self) -> dict:
+        return {}
+
+    def run(self, resume_from=None) -> int:
+        rdp = self.rd.path
+        self.writer = fio.TimeSeriesWriter(rdp, self.mesh, SERIES, resume=resume_from is not None)
+        if resume_from is not None:
+            state, meta = resume_from
+            self.step = int(meta["step"])
+            self.wall_before = float(meta.get("wall_s", 0.0))
+            self.p.wall_before = self.wall_before
+            self.newton_total = int(meta.get("newton_total", 0))
+            self.resumes = int(meta.get("resumes", 0)) + 1
+            self.restore(state, meta)
+            self.writer.truncate_after(float(meta["series_time"]))
+            self.last_frame_step = self.last_ckpt_step = self.step
+            self.p.say(f"resumed from the checkpoint at step {self.step} ({self.resume_text()})")
+        else:
+            self.initialise()
+            self.write_frame()
+            self.checkpoint()
+        code = 0
+        old_term = None
+        try:
+            with contextlib.suppress(ValueError):   # not in the main thread: no SIGTERM handler
+                old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
+            try:
+                self.loop()
+                if self.status == "running":
+                    self.status = self.final_status()
+            except StepFailure as exc:
+                self.status, self.message = "failed", str(exc)
+                code = 1
+            except KeyboardInterrupt:
+                self.status = "interrupted"
+                self.message = (f"interrupted after step {self.step}; continue with: femshell run "
+                                f"{self.scene_arg()} --out {rdp} --resume")
+                code = 130
+            # the last accepted state, whatever happened
+            if self.status not in ("interrupted", "failed", "paused") and self.last_frame_step != self.step:
+                self.write_frame()
+            if self.last_ckpt_step != self.step:
+                self.checkpoint()
+            pics = []
+            if self.status in FINAL and self.out["pictures"]:
+                try:
+                    pics = self.pictures()
+                    if self.out["movie"]:
+                        from ..viz import render_run
+                        pics += [p for p in render_run(rdp, cmap=self.out["cmap"]) if p.suffix in (".gif", ".mp4")]
+                except Exception as exc:  # pictures must not lose a finished run
+                    self.p.say(f"warning: pictures failed: {type(exc).__name__}: {exc}")
+            self.write_summary(pics)
+        finally:
+            if old_term is not None:
+                signal.signal(signal.SIGTERM, old_term)
+        self.report(code)
+        return code
+
+    def resume_text(self):
+        return f"series time {self.series_time():.6g}"
+
+    def final_status(self):
+        return "done"
+
+    def scene_arg(self):
+        return str(self.scene.source) if self.scene.source and "femshell/scenes" not in str(self.scene.source) \
+            else self.scene.name
+
+    def write_summary(self, pics):
+        d = self.scene.data
+        m = self.mesh
+        summary = {
+            "scene": self.scene.name, "description": d["description"],
+            "source": str(self.scene.source) if self.scene.source else None,
+            "solver": self.kind, "status": self.status, "message": self.message,
+            "steps": self.step, "steps_this_run": self.steps_this_run, "resumes": self.resumes,
+            "newton_iterations": self.newton_total,
+            "wall_s": self.wall_before + self.p.elapsed, "wall_s_this_run": self.p.elapsed,
+            "mesh": {"n_vertices": m.n_vertices, "n_triangles": m.n_triangles, "n_edges": m.topology.n_edges,
+                     "name": m.name},
+            "parameters": d,
+            "final": _clean(self.final()),
+            "files": {"series": f"{SERIES}.pvd", "frames": len(self.writer), "checkpoint": CHECKPOINT,
+                      "scene": SCENE_FILE,
+                      "pictures": [str(Path(p).relative_to(self.rd.path)) for p in pics]},
+            "femshell_version": _version(),
+        }
+        summary["files"].update(self.extra_files())
+        fio.write_summary(self.rd.path, summary)
+
+    def extra_files(self) -> dict:
+        return {}
+
+    def report(self, code):
+        fin = self.final()
+        lines = [f"{self.status}: {self.message}" if self.message else f"{self.status}",
+                 f"  {self.step} steps ({self.steps_this_run} in this run), {self.newton_total} Newton iterations, "
+                 f"wall time {_hms(self.wall_before + self.p.elapsed)} ({self.p.elapsed:.1f} s in this run)"]
+        lines += [f"  {line}" for line in self.report_lines(fin)]
+        lines.append(f"  outputs in {self.rd.path}/: {SERIES}.pvd ({len(self.writer)} frames), summary.json, "
+                     f"{CHECKPOINT}" + (", pictures/" if (self.rd.path / "pictures").is_dir() else ""))
+        for line in lines:
+            self.p.say(line)
+
+    def report_lines(self, fin) -> list:
+        return []
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _clean(obj):
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _clean(obj.tolist())
+    return _finite_or_none(obj)
+
+
+def _version():
+    try:
+        from importlib.metadata import version
+        return version("femshell")
+    except Exception:  # pragma: no cover
+        return None
+
+
+# ----------------------------------------------------------------------------- time loop
+
+class TimeRunner(BaseRunner):
+    kind = "time"
+
+    def _log(self, msg):
+        if msg.startswith("initial equilibrium") or (self.verbose and not msg.startswith("step ")):
+            self.p.say(f"  {msg.strip()}")
+
+    def initialise(self):
+        self.p.say("initial equilibrium of the grown spot (Newton, growth ramped) ...")
+        t = time.perf_counter()
+        from ..coupled import CoupledError
+        try:
+            self.loop_ = time_loop(self.scene, self.mesh, log=self._log)
+        except CoupledError as exc:
+            raise StepFailure(f"the initial equilibrium failed: {exc}") from None
+        self.newton_total = self.loop_.newton_total
+        self.p.say(f"  done in {time.perf_counter() - t:.1f} s")
+
+    def restore(self, state, meta):
+        self.loop_ = time_loop(self.scene, self.mesh, state=state, log=self._log)
+
+    def advance(self):
+        from ..coupled import CoupledError
+        try:
+            rec = self.loop_.advance()
+        except CoupledError as exc:
+            raise StepFailure(str(exc)) from None
+        self.newton_total = self.loop_.newton_total
+        tf = self.loop_.stepping.t_final
+        text = (f"step {rec.step:5d}  t {rec.t:9.4g}/{tf:g}  dt {rec.dt:8.3g}  newton {rec.newton_iterations:2d}"
+                f"{f' cuts {rec.cuts}' if rec.cuts else ''}  max c {rec.max_c:.3g}  max H {rec.max_H:.3g}  "
+                f"spots {rec.n_spots}")
+        return text, (rec.t / tf if tf > 0 else 1.0)
+
+    def finished(self):
+        return self.loop_.done
+
+    def final_status(self):
+        lp = self.loop_
+        if lp.is_stationary and lp.t < lp.stepping.t_final:
+            self.message = f"stationary at t = {lp.t:.6g} (c and the shape stopped changing)"
+            return "stationary"
+        self.message = f"reached t_final = {lp.stepping.t_final:g}"
+        return "t_final"
+
+    def series_time(self):
+        return float(self.loop_.t)
+
+    def resume_text(self):
+        return f"t = {self.loop_.t:.6g}"
+
+    def frame(self):
+        lp = self.loop_
+        pts, pd, cd = frame_fields(self.out["fields"], model=lp.shell, u=lp.u, s=lp.s, H_vertex=lp.H_vertex,
+                                   c=lp.c, contractility=lp.params.contractility)
+        return lp.t, pts, pd, cd
+
+    def state(self):
+        return self.loop_.state_dict()
+
+    def final(self):
+        from ..analysis import find_spots
+
+        lp = self.loop_
+        pm = find_spots(lp.points, self.mesh.triangles, lp.c, lp.params.c_star)
+        pattern = pm.as_dict()
+        pattern["regions"] = pattern["regions"][:100]
+        r = np.linalg.norm(lp.points - lp.points.mean(axis=0), axis=1)
+        return {"t": lp.t, "max_c": float(lp.c.max()), "min_c": float(lp.c.min()), "max_H": float(lp.H_vertex.max()),
+                "min_H": float(lp.H_vertex.min()), "energy": lp.energy, "max_stretch": float(lp.s.max()),
+                "radius_min": float(r.min()), "radius_max": float(r.max()), "rejected_steps": lp.n_rejected,
+                "stationary": bool(lp.is_stationary), "c_max_theory": lp.params.c_max, "pattern": pattern}
+
+    def report_lines(self, fin):
+        pat = fin["pattern"]
+        extra = ""
+        if pat["n_spots"]:
+            extra = (f", spot radius {pat['spot_radius']:.3g}, spacing {pat['spacing']:.3g}" if pat["spot_radius"]
+                     else "")
+        return [f"t = {fin['t']:.6g}: max c {fin['max_c']:.3g}, max H {fin['max_H']:.3g}; pattern: {pat['n_spots']} "
+                f"region(s) with c > c* ({pat['kind']}, {pat['n_ridges']} ridges), {100 * pat['fraction_patterned']:.1f} % "
+                f"of the area{extra}"]
+
+    def pictures(self):
+        from .. import viz
+
+        lp = self.loop_
+        d = self.rd.path / "pictures"
+        d.mkdir(exist_ok=True)
+        name, values = _picture_field(self.out["picture_field"], lp.points, lp.shell, lp.u, c=lp.c,
+                                      H=lp.H_vertex, s=lp.s, contractility=lp.params.contractility)
+        title = f"{self.scene.name}: t = {lp.t:.4g}"
+        clim = (0.0, max(float(values.max()), 1e-12)) if name == "c" else None
+        top = viz.top_view(lp.points, self.mesh.triangles, (name, values), d / "top.png", title=title,
+                           cmap=self.out["cmap"], clim=clim)
+        side = viz.side_view(lp.points, self.mesh.triangles, d / "side.png", title=title, cmap=self.out["cmap"])
+        return [top, side]
+
+
+def rigid_align(X, x):
+    """``x`` moved rigidly (rotation + translation, Kabsch) onto the reference ``X`` (for pictures)."""
+    X = np.asarray(X, float)
+    x = np.asarray(x, float)
+    cX, cx = X.mean(axis=0), x.mean(axis=0)
+    U, _, Vt = np.linalg.svd((x - cx).T @ (X - cX))
+    dd = np.sign(np.linalg.det(U @ Vt))
+    R = U @ np.diag([1.0, 1.0, dd]) @ Vt
+    return (x - cx) @ R + cX
+
+
+def _side_picture(viz, mesh, x, scalars, path, title, cmap):
+    """side.png: the side view (coloured by radius) of a curved shell; for a shell that was flat, an
+    oblique view (the shape turned 35° about x, then 25° about z) coloured like the top view:
+    a strip rolled about y is edge-on in the side view."""
+    if not mesh.is_flat():
+        return viz.side_view(x, mesh.triangles, path, title=title, cmap=cmap)
+    a, b = math.radians(35.0), math.radians(25.0)
+    rx = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+    rz = np.array([[math.cos(b), -math.sin(b), 0], [math.sin(b), math.cos(b), 0], [0, 0, 1]])
+    c = x.mean(axis=0)
+    xo = (x - c) @ (rz @ rx).T + c
+    return viz.side_view(xo, mesh.triangles, path, scalars=scalars, title=f"{title} (oblique view)", cmap=cmap)
+
+
+def _picture_field(name, points, model, u, *, c=None, H=None, s=None, contractility=None):
+    if name == "c":
+        return "c", c
+    if name == "Lambda":
+        return "Lambda", contractility(c)
+    if name == "H":
+        return "H", H
+    if name == "displacement":
+        return "|displacement|", np.linalg.norm(points - model.mesh.points, axis=1)
+    if name == "z":
+        return "z", points[:, 2]
+    if name == "radius":
+        return "radius", np.linalg.norm(points - points.mean(axis=0), axis=1)
+    if name == "stretch":
+        return "stretch", s
+    if name == "thickness":
+        return "thickness", np.asarray(model.rest.thickness, float)
+    mem, bend = energy_fields(model, u)
+    return name, {"energy_density": mem + bend, "membrane_energy_density": mem, "bending_energy_density": bend}[name]
+
+
+# ----------------------------------------------------------------------------- static load stepping
+
+class StaticRunner(BaseRunner):
+    """Load factor and growth ramped together from 0 to 1 in ``steps`` increments, Newton at each."""
+
+    kind = "static"
+
+    def initialise(self):
+        self._setup()
+
+    def _setup(self):
+        self.parts = shell_parts(self.scene, self.mesh)
+        so = self.scene["solver"]
+        self.n_steps = so["steps"]
+        self.mu = 0.0
+        self.k = 0
+        self.u = self.parts.model.initial_unknowns()
+        self.prev = None
+        self.last = None
+        self._set(0.0)
+        self.newton = dict(rtol=so["newton_rtol"] or 1e-8, max_iter=so["newton_max_iter"] or 60,
+                           backend=so["backend"], stable=so["stable"])
+
+    def _set(self, mu):
+        gr = self.scene["growth"]
+        self.parts.model.load_factor = mu
+        if gr["law"] not in ("none", None):
+            self.parts.apply(stretch_field(gr, self.mesh, strain=mu * gr["strain"]))
+
+    def _edge_moments(self):
+        return [(i, ld) for i, ld in enumerate(self.parts.loads) if hasattr(ld, "update_branch")]
+
+    def restore(self, state, meta):
+        self._setup()
+        self.k = int(state["k"])
+        self.mu = float(state["mu"])
+        self.u = np.array(state["u"], dtype=float)
+        if state["has_prev"]:
+            self.prev = (float(state["prev_mu"]), np.array(state["prev_u"], dtype=float))
+        for i, ld in self._edge_moments():
+            ld._offset = np.array(state[f"load{i}_offset"], dtype=float)
+            ld._ref = np.array(state[f"load{i}_ref"], dtype=float)
+        self._set(self.mu)
+
+    def state(self):
+        st = {"k": self.k, "mu": self.mu, "u": self.u, "has_prev": self.prev is not None,
+              "prev_mu": self.prev[0] if self.prev else 0.0,
+              "prev_u": self.prev[1] if self.prev else np.zeros(0)}
+        # path-dependent loads (edge moments) carry the rotation of their reference normals
+        for i, ld in self._edge_moments():
+            st[f"load{i}_offset"] = np.asarray(ld._offset, dtype=float)
+            st[f"load{i}_ref"] = np.asarray(ld._ref, dtype=float)
+        return st
+
+    def finished(self):
+        return self.k >= self.n_steps
+
+    def advance(self):
+        from ..solvers.newton import NewtonError, minimize
+
+        model = self.parts.model
+        target = (self.k + 1) / self.n_steps
+        step = target - self.mu
+        cuts = 0
+        iters = 0
+        max_cuts = self.scene["solver"]["max_cuts"]
+        while True:
+            trial = self.mu + step
+            self._set(trial)
+            start = self.u
+            if self.prev is not None and self.prev[0] != self.mu:
+                start = self.u + (trial - self.mu) / (self.mu - self.prev[0]) * (self.u - self.prev[1])
+                if not np.isfinite(model.energy(start)):
+                    start = self.u
+            try:
+                res = minimize(model, start, log=None, **self.newton)
+                iters += res.iterations
+                if not (np.all(np.isfinite(res.u)) and math.isfinite(res.energy)):
+                    raise NewtonError("non-finite state")
+            except NewtonError as exc:
+                res_it = getattr(getattr(exc, "result", None), "iterations", 0) or 0
+                iters += res_it
+                cuts += 1
+                if cuts > max_cuts:
+                    self._set(self.mu)
+                    raise StepFailure(f"increment to factor {trial:.6g} failed after {max_cuts} cuts: {exc}") from None
+                step *= 0.5
+                if self.verbose:
+                    self.p.say(f"  factor {trial:.6g}: Newton failed ({exc}); increment cut to {step:.3g}")
+                continue
+            self.prev = (self.mu, self.u)
+            self.u, self.mu = res.u, trial
+            model.accept(self.u)
+            self.last = res
+            if abs(self.mu - target) <= 1e-14:
+                self.mu = target
+                break
+            step = target - self.mu
+        self.k += 1
+        self.newton_total += iters
+        disp = np.linalg.norm(model.positions(self.u) - self.mesh.points, axis=1).max()
+        text = (f"step {self.k:4d}/{self.n_steps}  factor {self.mu:.4g}  newton {iters:2d}"
+                f"{f' cuts {cuts}' if cuts else ''}  energy {res.energy:.6g}  max |u| {disp:.4g}"
+                + ("" if res.stable is None else ("  stable" if res.stable else f"  UNSTABLE ({res.n_negative})")))
+        return text, self.k / self.n_steps
+
+    def series_time(self):
+        return float(self.mu)
+
+    def resume_text(self):
+        return f"load factor {self.mu:.6g}"
+
+    def final_status(self):
+        self.message = f"load factor 1 reached in {self.n_steps} increments"
+        return "done"
+
+    def frame(self):
+        model = self.parts.model
+        _, Hv = self.parts.mean_curvature(self.u)
+        pts, pd, cd = frame_fields(self.out["fields"], model=model, u=self.u, s=self.parts.s, H_vertex=Hv)
+        return self.mu, pts, pd, cd
+
+    def final(self):
+        model = self.parts.model
+        x = model.positions(self.u)
+        disp = x - self.mesh.points
+        out = {"load_factor": self.mu, "energy": model.energy(self.u), "strain_energy": model.strain_energy(self.u),
+               "max_displacement": float(np.linalg.norm(disp, axis=1).max()),
+               "max_deflection_z": float(np.abs(disp[:, 2]).max()),
+               "stable": None if self.last is None else self.last.stable}
+        curves = {}
+        for name, verts in self.mesh.topology.boundary_vertex_groups.items():
+            curves[name] = [float(v) for v in disp[verts].mean(axis=0)]
+        out["mean_displacement_of_curves"] = curves
+        return out
+
+    def report_lines(self, fin):
+        return [f"load factor {fin['load_factor']:.6g}: strain energy {fin['strain_energy']:.6g}, max |u| "
+                f"{fin['max_displacement']:.4g}, max |w| {fin['max_deflection_z']:.4g}"
+                + ("" if fin["stable"] is None else (", stable" if fin["stable"] else ", UNSTABLE"))]
+
+    def pictures(self):
+        from .. import viz
+
+        model = self.parts.model
+        x = model.positions(self.u)
+        d = self.rd.path / "pictures"
+        d.mkdir(exist_ok=True)
+        _, Hv = self.parts.mean_curvature(self.u)
+        name, values = _picture_field(self.out["picture_field"], x, model, self.u, H=Hv, s=self.parts.s)
+        title = f"{self.scene.name}: factor {self.mu:.4g}"
+        top = viz.top_view(x, self.mesh.triangles, (name, values), d / "top.png", title=title, cmap=self.out["cmap"])
+        side = _side_picture(viz, self.mesh, x, (name, values), d / "side.png", title, self.out["cmap"])
+        return [top, side]
+
+
+# ----------------------------------------------------------------------------- continuation
+
+class ContinuationRunner(BaseRunner):
+    """Pseudo-arclength continuation (femshell.solvers.continuation), one frame per accepted point."""
+
+    kind = "continuation"
+
+    def _setup(self):
+        from ..solvers.continuation import GrowthParameter, LoadParameter
+
+        sc = self.scene
+        so, gr = sc["solver"], sc["growth"]
+        self.parts = parts = shell_parts(sc, self.mesh)
+        model = parts.model
+        self.param = so["parameter"]
+        h0 = sc["shell"]["thickness"]
+        if self.param == "loads.factor":
+            self.start = 0.0 if so["start"] is None else so["start"]
+            if gr["law"] not in ("none", None):
+                parts.apply(stretch_field(gr, self.mesh))
+            model.load_factor = self.start
+        elif self.param == "growth.strain":
+            self.start = gr["strain"] if so["start"] is None else so["start"]
+            model.load_factor = 1.0
+        else:
+            self.start = gr["inner_radius"] if so["start"] is None else so["start"]
+            model.load_factor = 1.0
+        stop = so["stop"]
+        scale = so["parameter_scale"] or (abs(stop - self.start) if stop is not None else 1.0) or 1.0
+        length = so["length_scale"] or h0
+        if self.param == "loads.factor":
+            self.problem = LoadParameter(model, length_scale=length, parameter_scale=scale)
+        else:
+            key = "strain" if self.param == "growth.strain" else "inner_radius"
+
+            def rest_of(lam):
+                s = stretch_field(gr, self.mesh, **{key: lam})
+                parts.s = s
+                return parts.rest_for(s)
+            self.problem = GrowthParameter(model, rest_of, length_scale=length, parameter_scale=scale)
+        self.problem.set_parameter(self.start)
+        flat = self.mesh.is_flat()
+        self.flat = flat
+        self.free_body = not sc["boundary"]
+        self.r2 = gr.get("inner_radius") if gr["law"] == "inner_region" else None
+        self.segments = []        # finished segments' rows (all branches)
+        self.cur_rows = []
+        self.cur_label = "primary"
+        self.phase = "primary"
+        self.specials = []        # dicts written to summary
+        self.sp_objects = []      # SpecialPoint objects of the primary branch (for switching)
+        self.u = model.initial_unknowns()
+        self.lam = self.start
+        self.prev = None
+        self.branch_status = {}
+        self.resume_tangent = None
+        self.seg_offset = 0
+
+    def initialise(self):
+        self._setup()
+
+    def deflection(self, z):
+        """Out-of-plane displacement of a flat shell; for a free shell with its best-fit plane
+        a + b X + c Y removed (the rigid-body pins let a buckled free disk tilt)."""
+        if not self.free_body:
+            return z
+        X = self.mesh.points
+        A = np.column_stack([np.ones(len(X)), X[:, 0], X[:, 1]])
+        coef, *_ = np.linalg.lstsq(A, z, rcond=None)
+        return z - A @ coef
+
+    def record(self, u):
+        x = self.parts.model.positions(u)
+        disp = x - self.mesh.points
+        if self.flat:
+            # a free shell: measured in its best rigid fit onto the reference (large tilts included)
+            w = rigid_align(self.mesh.points, x)[:, 2] - self.mesh.points[:, 2] if self.free_body else disp[:, 2]
+            amp = float(np.abs(w).max())
+        else:
+            amp = float(np.linalg.norm(disp, axis=1).max())
+        out = {"amplitude": amp}
+        if self.flat and self.r2 is not None:
+            from ..analysis import count_wrinkles
+            r = min(self.r2, 0.98 * float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max()))
+            try:
+                out["wrinkles"] = count_wrinkles(self.mesh.points, w, r, min_mode=1, rel_tol=0.05)
+            except ValueError:
+                out["wrinkles"] = -1
+        return out
+
+    # --- state
+    def state(self):
+        st = {"u": self.u, "lam": float(self.lam), "has_prev": self.prev is not None,
+              "prev_u": self.prev[0] if self.prev else np.zeros(0),
+              "prev_lam": float(self.prev[1]) if self.prev else 0.0}
+        sp = self._switch_point()
+        if sp is not None:
+            st.update({"sp_u": sp.u, "sp_tu": sp.tangent[0], "sp_tl": float(sp.tangent[1]), "sp_modes": sp.modes,
+                       "sp_eigs": np.asarray(sp.eigenvalues, float),
+                       "sp_weights": np.asarray(sp.weights if sp.weights is not None else np.zeros(0), float)})
+        return st
+
+    def extra_meta(self):
+        sp = self._switch_point()
+        return {"phase": self.phase, "label": self.cur_label,
+                "rows": _clean(self.segments + self.cur_rows), "specials": _clean(self.specials),
+                "branch_status": self.branch_status,
+                "switch_point": None if sp is None else _clean({
+                    "kind": sp.kind, "parameter": sp.parameter, "s": sp.s, "multiplicity": sp.multiplicity,
+                    "n_negative_before": sp.n_negative_before, "n_negative_after": sp.n_negative_after,
+                    "step": sp.step, "parameter_scale": sp.parameter_scale})}
+
+    def _switch_point(self):
+        for p in self.sp_objects:
+            if p.kind == "branch":
+                return p
+        return None
+
+    def restore(self, state, meta):
+        from ..solvers.continuation import SpecialPoint
+
+        self._setup()
+        self.phase = meta["phase"]
+        self.cur_label = meta["label"]
+        self.branch_status = dict(meta.get("branch_status", {}))
+        self.specials = list(meta.get("specials", []))
+        self.segments = list(meta.get("rows", []))
+        self.cur_rows = []
+        self.u = np.array(state["u"], dtype=float)
+        self.lam = float(state["lam"])
+        self.problem.set_parameter(self.lam)
+        if state["has_prev"]:
+            self.prev = (np.array(state["prev_u"], float), float(state["prev_lam"]))
+        spm = meta.get("switch_point")
+        if spm is not None and "sp_u" in state:
+            w = np.array(state["sp_weights"], float)
+            self.sp_objects = [SpecialPoint(
+                kind=spm["kind"], parameter=spm["parameter"], s=spm["s"], u=np.array(state["sp_u"], float),
+                tangent=(np.array(state["sp_tu"], float), float(state["sp_tl"])),
+                eigenvalues=np.array(state["sp_eigs"], float), modes=np.array(state["sp_modes"], float),
+                multiplicity=int(spm["multiplicity"]), n_negative_before=spm["n_negative_before"],
+                n_negative_after=spm["n_negative_after"], step=int(spm["step"]),
+                weights=w if len(w) else None, parameter_scale=float(spm["parameter_scale"]))]
+        if self.prev is not None and self.phase != "done":
+            du, dl = self.u - self.prev[0], self.lam - self.prev[1]
+            if np.any(du) or dl:
+                self.resume_tangent = (du, dl)
+
+    def series_time(self):
+        return float(self.step)
+
+    def resume_text(self):
+        return f"{self.cur_label} branch at {self.param} = {self.lam:.8g}"
+
+    def finished(self):
+        return self.phase == "done"
+
+    def final_status(self):
+        if not self.message:
+            self.message = "; ".join(f"{k} branch: {v['message']}" for k, v in self.branch_status.items())
+        return "done"
+
+    def frame(self):
+        model = self.parts.model
+        _, Hv = self.parts.mean_curvature(self.u)
+        pts, pd, cd = frame_fields(self.out["fields"], model=model, u=self.u, s=self.parts.s, H_vertex=Hv)
+        return float(self.step), pts, pd, cd
+
+    # --- the loop: continuation() drives, the callback reports
+    def loop(self):
+        so = self.scene["solver"]
+        while self.phase != "done":
+            if self.phase == "primary":
+                self._segment(primary=True)
+            elif self.phase == "switched":
+                self._segment(primary=False)
+            if self.status == "paused":
+                return
+
+    def _options(self, steps_done):
+        so = self.scene["solver"]
+        ds = so["ds"]
+        return dict(ds_min=so["ds_min"], ds_max=so["ds_max"] or 2 * ds, max_steps=max(so["max_steps"] - steps_done, 1),
+                    n_eigs=so["n_eigs"], record=self.record, detect=so["detect"], stop_at=tuple(so["stop_at"]),
+                    rtol=so["newton_rtol"] or 1e-8, backend=so["backend"],
+                    log=(lambda s: self.p.say(s)) if self.verbose else None)
+
+    def _segment(self, primary):
+        from ..solvers.continuation import ContinuationError, continuation, switch_branch
+
+        so = self.scene["solver"]
+        label = self.cur_label
+        steps_done = sum(1 for r in self.segments if r.get("branch") == label and not r.get("special")
+                         and r.get("step", 0) > 0)
+        resumed = self.resume_tangent is not None
+        stop = so["stop"] if primary else (so["switch_stop"] if so["switch_stop"] is not None else so["stop"])
+        opts = self._options(steps_done)
+        self.seg_offset = 1 if resumed else 0
+        self._sp_seen = 0
+
+        def callback(branch, row):
+            rows = list(branch.rows)[self.seg_offset:]
+            self.cur_rows = [dict(r, branch=label) for r in rows]
+            self.prev = (self.u, self.lam)
+            self.u, self.lam = branch.states[-1] if branch.states[-1] is not None else branch.last
+            self.u = np.asarray(self.u, float)
+            self.lam = float(self.lam)
+            new_sp = branch.special_points[self._sp_seen:]
+            for sp in new_sp:
+                self._special(sp, label)
+            self._sp_seen = len(branch.special_points)
+            self.newton_total += int(row.get("iterations") or 0)
+            text = (f"{label} step {row['step']:3d}  {self.param} {row['parameter']:.6g}  ds {row['ds']:.3g}  "
+                    f"it {row['iterations']}  n_neg {row['n_negative']}  amplitude {row.get('amplitude', 0):.4g}"
+                    + (f"  wrinkles {int(row['wrinkles'])}" if "wrinkles" in row else "")
+                    + (f"  passed {', '.join(sp.label for sp in new_sp)}" if new_sp else ""))
+            frac = None
+            if stop is not None and stop != self._seg_start:
+                frac = min(max((row["parameter"] - self._seg_start) / (stop - self._seg_start), 0.0), 1.0)
+            self.accepted(text, frac)
+            if self.max_steps is not None and self.steps_this_run >= self.max_steps:
+                return True
+            return None
+
+        try:
+            if primary and not resumed:
+                self._seg_start = self.start
+                branch = continuation(self.problem, self.u, self.start, ds=so["ds"], lam_stop=stop, label=label,
+                                      callback=callback, **opts)
+            elif not resumed:
+                sp = self._switch_point()
+                self._seg_start = sp.parameter
+                self.p.say(f"branch switching at {sp.label} {self.param} = {sp.parameter:.8g} "
+                           f"(multiplicity {sp.multiplicity})")
+                amp = so["switch_amplitude"] or so["ds"]
+                opts.pop("max_steps")
+                branch = switch_branch(self.problem, sp, amplitude=amp, ds=so["ds"], lam_stop=stop, label=label,
+                                       callback=callback, max_steps=so["max_steps"], **opts)
+            else:
+                self._seg_start = self.lam
+                tu, tl = self.resume_tangent
+                self.resume_tangent = None
+                self.problem.set_parameter(self.lam)
+                branch = continuation(self.problem, self.u, self.lam, ds=so["ds"], lam_stop=stop, label=label,
+                                      callback=callback, initial_tangent=(tu, tl), **opts)
+        except ContinuationError as exc:
+            raise StepFailure(str(exc)) from None
+        for sp in branch.special_points[self._sp_seen:]:
+            self._special(sp, label)
+        self._sp_seen = len(branch.special_points)
+        self.cur_rows = [dict(r, branch=label) for r in list(branch.rows)[self.seg_offset:]]
+        self.segments += self.cur_rows
+        self.cur_rows = []
+        if branch.status == "callback":       # --max-steps
+            self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps (--max-steps); "
+                                                   "continue with --resume")
+            self.resume_tangent = None if self.prev is None else (self.u - self.prev[0], self.lam - self.prev[1])
+            return
+        self.branch_status[label] = {"status": branch.status, "message": branch.message}
+        if branch.status == "ds_min":
+            raise StepFailure(f"{label} branch: {branch.message}")
+        if primary and so["switch_branch"] and self._switch_point() is not None:
+            self.phase, self.cur_label = "switched", "switched"
+            self.prev = None
+        else:
+            if primary and so["switch_branch"]:
+                self.message = "no branch point on the primary branch: nothing to switch to"
+            self.phase = "done"
+        self.checkpoint()
+
+    def _special(self, sp, label):
+        if label == "primary":
+            self.sp_objects.append(sp)
+        k = len(self.specials)
+        d = self.rd.path / "special"
+        d.mkdir(exist_ok=True)
+        model = self.parts.model
+        n = self.mesh.n_vertices
+
+        def vec(v, with_fixed):
+            if with_fixed:
+                q = model.full(v)
+            else:
+                q = np.zeros(model.n_total)
+                q[model.free] = v
+            return q[: 3 * n].reshape(-1, 3)
+
+        x = vec(sp.u, True)
+        pdata = {"displacement": x - self.mesh.points}
+        for j in range(sp.modes.shape[1]):
+            pdata[f"mode_{j}"] = vec(sp.modes[:, j], False)
+        path = d / f"{label}-{k:02d}-{sp.kind}.vtu"
+        import meshio
+
+        m = meshio.Mesh(x, [("triangle", self.mesh.triangles)], point_data=pdata)
+        fio.atomic_write(path, lambda tmp: meshio.write(tmp, m, file_format="vtu"))
+        info = {"branch": label, "kind": sp.kind, "label": sp.label, "parameter": sp.parameter,
+                "multiplicity": sp.multiplicity, "n_negative_before": sp.n_negative_before,
+                "n_negative_after": sp.n_negative_after, "eigenvalues": list(np.asarray(sp.eigenvalues)[:6]),
+                "file": str(path.relative_to(self.rd.path))}
+        if self.flat and self.r2 is not None and sp.modes.shape[1]:
+            from ..analysis import count_wrinkles
+            try:
+                info["mode_wrinkles"] = count_wrinkles(self.mesh.points,
+                                                       self.deflection(vec(sp.modes[:, 0], False)[:, 2]),
+                                                       self.r2, min_mode=1, rel_tol=1e-3)
+            except ValueError:
+                pass
+        self.specials.append(info)
+        self.p.say(f"  found {sp.label} at {self.param} = {sp.parameter:.8g} (multiplicity {sp.multiplicity}"
+                   + (f", mode with {info['mode_wrinkles']} waves" if "mode_wrinkles" in info else "") + ")")
+
+    def rows(self):
+        return self.segments + self.cur_rows
+
+    def write_table(self):
+        import csv
+        import io as _io
+
+        rows = self.rows()
+        cols = []
+        for r in rows:
+            cols += [k for k in r if k not in cols]
+        buf = _io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(cols)
+        for r in rows:
+            w.writerow(["" if r.get(k) is None else (repr(float(r[k])) if isinstance(r.get(k), float) else r.get(k))
+                        for k in cols])
+        fio.atomic_write_text(self.rd.path / "branch.csv", buf.getvalue())
+
+    def checkpoint(self):
+        super().checkpoint()
+        self.write_table()
+
+    def extra_files(self):
+        return {"table": "branch.csv", "special_points": [s["file"] for s in self.specials]}
+
+    def final(self):
+        model = self.parts.model
+        disp = model.positions(self.u) - self.mesh.points
+        rec = self.record(self.u)
+        return {"parameter": self.param, "final_value": self.lam, "energy": model.strain_energy(self.u),
+                "max_displacement": float(np.linalg.norm(disp, axis=1).max()), **rec,
+                "branches": self.branch_status, "special_points": self.specials,
+                "rows": len(self.rows())}
+
+    def report_lines(self, fin):
+        lines = [f"{self.param} = {fin['final_value']:.8g} at the end: amplitude {fin['amplitude']:.4g}"
+                 + (f", {fin['wrinkles']} wrinkles" if "wrinkles" in fin else "")]
+        for s in self.specials:
+            lines.append(f"{s['branch']}: {s['label']} at {self.param} = {s['parameter']:.8g}, multiplicity "
+                         f"{s['multiplicity']}" + (f", mode with {s['mode_wrinkles']} waves" if "mode_wrinkles" in s
+                                                  else ""))
+        return lines
+
+    def pictures(self):
+        from .. import viz
+
+        model = self.parts.model
+        x = model.positions(self.u)
+        if self.free_body:
+            x = rigid_align(self.mesh.points, x)     # undo the tilt the rigid-body pins allow
+        d = self.rd.path / "pictures"
+        d.mkdir(exist_ok=True)
+        _, Hv = self.parts.mean_curvature(self.u)
+        name, values = _picture_field(self.out["picture_field"], x, model, self.u, H=Hv, s=self.parts.s)
+        title = f"{self.scene.name}: {self.param} = {self.lam:.4g}"
+        out = [viz.top_view(x, self.mesh.triangles, (name, values), d / "top.png", title=title, cmap=self.out["cmap"]),
+               _side_picture(viz, self.mesh, x, (name, values), d / "side.png", title, self.out["cmap"])]
+        rows = [r for r in self.rows() if r.get("amplitude") is not None]
+        sp = self._switch_point()
+        if sp is not None and any(r.get("branch") == "switched" for r in rows):
+            # the new branch starts at its branch point
+            i = next(i for i, r in enumerate(rows) if r.get("branch") == "switched")
+            rows.insert(i, dict(self.record(sp.u), parameter=sp.parameter, stable=None, branch="switched",
+                                special=""))
+        if rows:
+            scale = self.scene["solver"]["parameter_scale"]
+            x = [r["parameter"] / (scale or 1.0) for r in rows]
+            table = {"parameter": x, "amplitude": [r["amplitude"] for r in rows],
+                     "stable": [r.get("stable") for r in rows], "branch": [r.get("branch") for r in rows],
+                     "special": [r.get("special") or "" for r in rows]}
+            ylabel = "max |w| (out-of-plane displacement)" if self.flat else "max |displacement|"
+            xlabel = self.param if not scale else f"{self.param} / {scale:g}"
+            out.append(viz.bifurcation_diagram(table, x="parameter", y="amplitude", path=d / "bifurcation.png",
+                                               xlabel=xlabel, ylabel=ylabel, title=self.scene.name))
+        return out
+
+
+RUNNERS = {"time": TimeRunner, "static": StaticRunner, "continuation": ContinuationRunner}
+
+
+# ----------------------------------------------------------------------------- entry point
+
+def _scene_differences(old: dict, new: dict) -> list:
+    diffs = []
+    for sec in sorted(set(old) | set(new)):
+        if sec in ("description", "name", "output"):
+            continue
+        a, b = old.get(sec), new.get(sec)
+        if isinstance(a, dict) and isinstance(b, dict):
+            for k in sorted(set(a) | set(b)):
+                if (sec, k) in RESUMABLE_CHANGES:
+                    continue
+                if a.get(k) != b.get(k):
+                    diffs.append(f"[{sec}] {k}: {a.get(k)!r} in the run, {b.get(k)!r} now")
+        elif a != b:
+            diffs.append(f"[{sec}] differs")
+    return diffs
+
+
+def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=False, overrides=(), max_steps=None,
+              quiet=False, verbose=False, stream=None) -> int:
+    """Run a scene (a .toml path or an embedded name); see the module docstring. Returns the exit code.
+
+    Raises :class:`SceneError` / :class:`RunDirError` (ValueErrors, exit code 2) for bad input,
+    before anything is computed or any file in ``out`` is touched.
+    """
+    stream = stream or sys.stdout
+    if resume and overwrite:
+        raise RunDirError("--resume and --overwrite contradict each other: choose one")
+    if scene is None:
+        if not (resume and out):
+            raise RunDirError("give a SCENE (a .toml file or an embedded scene name; see `femshell scenes`)")
+        p = Path(out) / SCENE_FILE
+        if not p.is_file():
+            raise RunDirError(f"{out}: no {SCENE_FILE} to resume from; give the SCENE too")
+        raw = parse_scene(p.read_text(encoding="utf-8"), str(p))
+        from .schema import apply_overrides
+        raw = apply_overrides(raw, overrides, str(p))
+        sc = validate(raw, name=raw.get("name") or Path(out).name, label=str(p), source=None, base_dir=Path(out))
+    else:
+        sc = load_scene(scene, overrides)
+    if max_steps is not None and max_steps < 0:
+        raise RunDirError(f"--max-steps must be >= 0, got {max_steps}")
+    if dry_run:
+        lines, _ = plan(sc)
+        dest = Path(out) if out else Path(f"{sc.name}-out")
+        lines.append(f"  out        {dest}/ (nothing computed, nothing written: --dry-run)")
+        print("\n".join(lines), file=stream)
+        return 0
+
+    rd = RunDir(Path(out) if out else Path(f"{sc.name}-out"))
+    resume_from = None
+    if rd.has_run() and not resume and not overwrite:
+        raise RunDirError(f"{rd.path} already holds {rd.describe()}; use --resume to continue it, --overwrite to "
+                          "replace it (femshell's files there are deleted), or choose another --out")
+    if resume:
+        if not rd.path.is_dir() or not rd.has_run():
+            raise RunDirError(f"{rd.path}: nothing to resume (no femshell run there); run without --resume")
+        old_p = rd.path / SCENE_FILE
+        if old_p.is_file():
+            try:
+                old = parse_scene(old_p.read_text(encoding="utf-8"), str(old_p))
+                old = validate(old, name=sc.name, label=str(old_p), base_dir=rd.path).data
+            except SceneError:
+                old = None
+            if old is not None:
+                diffs = _scene_differences(old, sc.data)
+                if diffs:
+                    raise RunDirError(f"{rd.path}: the scene differs from the one of the run there, so it cannot be "
+                                      "resumed:\n  " + "\n  ".join(diffs) + "\n(resume with the same scene, or start "
+                                      "a new run with --overwrite or another --out)")
+        ck = rd.path / CHECKPOINT
+        if ck.exists() or (rd.path / (CHECKPOINT + ".prev")).exists():
+            try:
+                resume_from = fio.load_checkpoint(ck)
+            except (fio.CheckpointError, FileNotFoundError) as exc:
+                raise RunDirError(f"cannot resume: {exc}") from None
+            if resume_from[1].get("kind") != sc.kind:
+                raise RunDirError(f"{ck}: a checkpoint of a {resume_from[1].get('kind')} run, but the scene runs "
+                                  f"{sc.kind}")
+            summ = rd.summary()
+            if summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step") \
+                    and not _extends(summ, sc):
+                print(f"{rd.path}: the run is already finished (status {summ['status']}, {summ['steps']} steps); "
+                      "nothing to do (extend it with --set solver.t_final=... --resume)", file=stream)
+                return 0
+
+    mesh = make_mesh(sc)                    # scene errors of mesh files come before the directory is touched
+    progress = Progress(stream, interval=sc["output"]["progress_interval"], quiet=quiet)
+    with rd.lock():
+        if overwrite:
+            rd.clear()
+        fio.atomic_write_text(rd.path / SCENE_FILE, f"# the scene as run by femshell (every default filled in)\n"
+                                                    + dump_toml(sc.data))
+        if resume_from is None:
+            head, _ = plan(sc, mesh)
+            for line in head:
+                progress.say(line)
+            progress.say(f"  out        {rd.path}/")
+        elif resume and not quiet:
+            progress.say(f"scene '{sc.name}': resuming the run in {rd.path}/")
+        runner = RUNNERS[sc.kind](sc, mesh, rd, progress=progress, max_steps=max_steps, verbose=verbose)
+        try:
+            return runner.run(resume_from)
+        except StepFailure as exc:          # the initial state could not be made: nothing to checkpoint
+            progress.say(f"failed: {exc}")
+            fio.write_summary(rd.path, {"scene": sc.name, "solver": sc.kind, "status": "failed",
+                                        "message": str(exc), "steps": 0, "parameters": sc.data,
+                                        "wall_s": progress.elapsed})
+            return 1
+
+
+def _extends(summary, sc):
+    """True when a finished time run's t_final was raised (the resume continues it)."""
+    if sc.kind != "time":
+        return False
+    try:
+        old_tf = summary["parameters"]["solver"]["t_final"]
+        t = summary["final"]["t"]
+    except (KeyError, TypeError):
+        return False
+    return sc["solver"]["t_final"] > old_tf and summary.get("status") == "t_final" and t < sc["solver"]["t_final"]

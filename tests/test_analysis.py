@@ -1,0 +1,131 @@
+"""femshell.analysis: spot counts, ridge classification, the paper's radius/spacing, profiles, wrinkles."""
+
+import math
+
+import numpy as np
+import pytest
+
+from femshell.analysis import (azimuthal_spectrum, count_spots, count_wrinkles, find_spots, polar_profile,
+                               spot_radius, spot_spacing, vertex_areas)
+from femshell.mesh.generators import disk, plate, sphere
+
+R = 10.0
+
+
+@pytest.fixture(scope="module")
+def ball():
+    return sphere(R, n_vertices=2500)
+
+
+def bumps(points, directions, width, amplitude=1.0):
+    """Sum of Gaussian bumps in the geodesic distance from each direction."""
+    x = points / np.linalg.norm(points, axis=1)[:, None]
+    c = np.zeros(len(points))
+    for d in directions:
+        d = np.asarray(d, float) / np.linalg.norm(d)
+        rho = R * np.arccos(np.clip(x @ d, -1, 1))
+        c += amplitude * np.exp(-(rho / width) ** 2)
+    return c
+
+
+OCTAHEDRON = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+
+
+@pytest.mark.parametrize("k", [1, 3, 6])
+def test_k_bumps_give_k_spots(ball, k):
+    width, c_star = 2.0, 0.3
+    c = bumps(ball.points, OCTAHEDRON[:k], width)
+    pm = find_spots(ball.points, ball.triangles, c, c_star)
+    assert pm.n_spots == k and pm.n_ridges == 0 and pm.kind == "spots"
+    # each region is the geodesic disk rho < w sqrt(ln(1/c*)); area 2 pi R^2 (1 - cos(rho/R))
+    rho = width * math.sqrt(math.log(1 / c_star))
+    disk_area = 2 * math.pi * R**2 * (1 - math.cos(rho / R))
+    for reg in pm.regions:
+        assert reg.area == pytest.approx(disk_area, rel=0.03)
+        assert reg.aspect < 1.3 and reg.isoperimetric < 1.2
+    assert pm.area_low == pytest.approx(k * disk_area, rel=0.03)
+    assert pm.area_total == pytest.approx(4 * math.pi * R**2, rel=0.01)
+    assert pm.spot_radius == pytest.approx(math.sqrt(disk_area / math.pi), rel=0.02)
+    assert count_spots(ball.points, ball.triangles, c, c_star) == k
+
+
+def test_nothing_above_threshold(ball):
+    pm = find_spots(ball.points, ball.triangles, np.zeros(ball.n_vertices), 0.1)
+    assert pm.n_spots == 0 and pm.kind == "none" and pm.area_low == 0
+    assert math.isnan(pm.spot_radius) and math.isnan(pm.spacing)
+    assert pm.as_dict()["spot_radius"] is None
+
+
+def test_band_and_arc_are_ridges(ball):
+    z = ball.points[:, 2]
+    ring = np.exp(-(z / 1.0) ** 2)                          # a closed band around the equator
+    pm = find_spots(ball.points, ball.triangles, ring, 0.3)
+    assert pm.n_spots == 1 and pm.n_ridges == 1 and pm.regions[0].kind == "ridge"
+    arc = ring * (ball.points[:, 1] > 2.0)                  # an open arc of it
+    pm = find_spots(ball.points, ball.triangles, arc, 0.3)
+    assert pm.n_spots == 1 and pm.regions[0].kind == "ridge" and pm.regions[0].aspect > 3
+
+
+def test_elongated_spot_is_a_ridge_round_one_is_not(ball):
+    from femshell.coupled import gaussian_spot
+
+    long = gaussian_spot(ball.points, 1.0, 1.5, elongation=4.0)
+    round_ = gaussian_spot(ball.points, 1.0, 1.5)
+    pl, pr = (find_spots(ball.points, ball.triangles, f, 0.3) for f in (long, round_))
+    assert pl.regions[0].kind == "ridge" and pl.regions[0].aspect == pytest.approx(4.0, rel=0.15)
+    assert pr.regions[0].kind == "spot" and pr.regions[0].aspect < 1.2
+
+
+def test_radius_and_spacing_formulas_by_hand():
+    # four disks of radius 2 on a surface whose share per spot is a disk of radius 3
+    A_l, A_tot = 4 * math.pi * 4.0, 4 * math.pi * 9.0
+    assert spot_radius(A_l, 4) == pytest.approx(2.0)
+    assert spot_spacing(A_tot, A_l, 4) == pytest.approx(2.0)           # 2 (3 - 2)
+    assert math.isnan(spot_radius(1.0, 0)) and math.isnan(spot_spacing(1.0, 0.5, 0))
+    with pytest.raises(ValueError):
+        spot_spacing(1.0, 2.0, 1)
+
+
+def test_p1_level_set_area_and_perimeter_are_exact_on_a_plate():
+    m = plate(1.0, 1.0, edge_length=0.1)
+    c = m.points[:, 0]                                      # linear: {x > 0.3} is a 0.7 x 1 rectangle
+    pm = find_spots(m.points, m.triangles, c, 0.3)
+    assert pm.n_spots == 1
+    assert pm.area_low == pytest.approx(0.7, rel=1e-12)
+    assert pm.regions[0].perimeter == pytest.approx(1.0, rel=1e-12)   # the level line only, not the mesh boundary
+    assert pm.area_total == pytest.approx(1.0, rel=1e-12)
+    assert vertex_areas(m.points, m.triangles).sum() == pytest.approx(1.0, rel=1e-12)
+
+
+def test_tiny_regions_are_ignored(ball):
+    c = bumps(ball.points, [(0, 0, 1)], 2.0)
+    v = int(np.argmin(ball.points[:, 2]))                   # one vertex barely over, at the other pole
+    c[v] = 0.3 + 1e-3
+    pm = find_spots(ball.points, ball.triangles, c, 0.3)
+    assert pm.n_spots == 1 and pm.ignored_regions == 1
+    assert find_spots(ball.points, ball.triangles, c, 0.3, min_area=0.0).n_spots == 2
+
+
+def test_polar_profile(ball):
+    x = ball.points
+    f = x[:, 2] / np.linalg.norm(x, axis=1)                 # cos(theta)
+    prof = polar_profile(x, f, 12, triangles=ball.triangles)
+    assert prof.count.sum() == ball.n_vertices
+    assert np.allclose(prof.mean, np.cos(prof.theta), atol=0.02)
+    assert prof.theta[0] == pytest.approx(math.pi / 24)
+
+
+def test_count_wrinkles_on_a_disk():
+    m = disk(radius=5.0, edge_length=0.4)
+    r = np.hypot(m.points[:, 0], m.points[:, 1])
+    phi = np.arctan2(m.points[:, 1], m.points[:, 0])
+    for k in (2, 3, 8):
+        w = (r / 5) ** 2 * np.cos(k * phi + 0.3) + 0.5 * r**2 / 25      # wrinkles on a dome
+        assert count_wrinkles(m.points, w, 4.0, triangles=m.triangles) == k
+        assert count_wrinkles(m.points, w, 4.0, triangles=m.triangles, method="zeros") == k
+    assert count_wrinkles(m.points, w, 4.0) == 8                        # Delaunay of the points instead
+    assert count_wrinkles(m.points, r**2, 4.0, triangles=m.triangles) == 0   # axisymmetric: no wrinkles
+    amp = azimuthal_spectrum(m.points, np.cos(3 * phi), 3.0, triangles=m.triangles)
+    assert amp[3] == pytest.approx(1.0, rel=0.02) and amp[0] < 1e-3
+    with pytest.raises(ValueError, match="leaves the mesh"):
+        count_wrinkles(m.points, r, 6.0, triangles=m.triangles)

@@ -1,0 +1,233 @@
+"""femshell.coupled: the mechanochemical time loop on a small sphere (design.md 1.4).
+
+The sphere has R = 5 and ~400 vertices (edge ~0.6), h0 = 0.5. To keep the suite fast
+the spot cases use a milder contractility ratio (Λmin = 13.5: s ≤ 1.11) than the
+paper's 1.5; the loop's logic does not depend on it.
+"""
+
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize_scalar
+
+from femshell.coupled import (CoupledError, CoupledLoop, GrowthCoupling, InitialSpot, MechanochemicalModel,
+                              TimeStepping, gaussian_spot)
+from femshell.io import load_checkpoint, save_checkpoint
+from femshell.mesh.generators import sphere
+
+R = 5.0
+H0 = 0.5
+
+
+@pytest.fixture(scope="module")
+def ball():
+    return sphere(R, n_vertices=400, seed=0)
+
+
+def top_vertex(mesh):
+    return int(np.argmax(mesh.points[:, 2]))
+
+
+# ----------------------------------------------------------------------------- parameters, spot, growth
+
+def test_parameter_validation_names_the_parameter():
+    with pytest.raises(ValueError, match="nu"):
+        MechanochemicalModel(nu=0.6)
+    with pytest.raises(ValueError, match="h0"):
+        MechanochemicalModel(h0=0.0)
+    with pytest.raises(ValueError, match="lam_max"):
+        MechanochemicalModel(lam_max=5.0, lam_min=10.0)
+    with pytest.raises(ValueError, match="thickness_mode"):
+        MechanochemicalModel(thickness_mode="constant")
+    with pytest.raises(ValueError, match="disagree"):
+        MechanochemicalModel(radius=30.0, k0=0.5)
+    with pytest.raises(ValueError, match="D"):
+        MechanochemicalModel(D=-1.0)
+    with pytest.raises(ValueError, match="Hs"):
+        MechanochemicalModel(Hs=0.0)
+    with pytest.raises(ValueError, match="dt_initial"):
+        TimeStepping(dt_initial=10.0, dt_max=1.0)
+    p = MechanochemicalModel(radius=30.0)
+    assert p.natural_curvature == pytest.approx(1 / 30) and p.c_max == pytest.approx(0.75)
+    assert p.s_max == pytest.approx(1.5)
+
+
+def test_gaussian_spot(ball):
+    c = gaussian_spot(ball.points, 0.75, 1.0)
+    top = top_vertex(ball)
+    assert c.argmax() == top and c[top] == pytest.approx(0.75, rel=5e-3)
+    assert c.min() >= 0 and c[int(np.argmin(ball.points[:, 2]))] < 1e-12
+    # one width away along the surface: 0.75/e
+    d = ball.points - ball.points.mean(axis=0)               # distances are taken about the centroid
+    r_eff = np.linalg.norm(d, axis=1).mean()
+    rho = r_eff * np.arccos(np.clip(d[:, 2] / np.linalg.norm(d, axis=1), -1, 1))
+    assert np.allclose(c, 0.75 * np.exp(-rho**2), rtol=1e-9, atol=1e-12)
+    # elongation e stretches the spot along x
+    ce = gaussian_spot(ball.points, 1.0, 1.0, elongation=3.0)
+    near = rho < 2.5
+    assert ce[near & (np.abs(ball.points[:, 0]) > 1.5)].max() > ce[near & (np.abs(ball.points[:, 1]) > 1.5)].max()
+    cc = gaussian_spot(ball.points, 1.0, 1.0, distance="chord")
+    assert cc.argmax() == top and cc[top] == pytest.approx(1.0, rel=5e-3)
+
+
+def test_growth_coupling_targets(ball):
+    from femshell.shell import Material, RestState, ShellModel, metric
+
+    a0 = metric(ball.points, ball.triangles)
+    model = ShellModel(ball, Material(1, 0.5), RestState(a0, a0 / R, H0))
+    for mode in ("volume", "uniform"):
+        g = GrowthCoupling(model, MechanochemicalModel(h0=H0, radius=R, thickness_mode=mode))
+        s = np.linspace(1.0, 1.5, ball.n_triangles)
+        rest = g.rest_state(s)
+        assert np.allclose(rest.metric, s[:, None, None] ** 2 * a0, rtol=1e-12)
+        assert np.allclose(rest.curvature, s[:, None, None] ** 2 * g.b_mesh, rtol=1e-12)
+        # volume conserving: target area x thickness stays A0 h0
+        expect = H0 / s**2 if mode == "volume" else np.full_like(s, H0)
+        assert np.allclose(rest.thickness, expect)
+    # the reference of H is the mesh's own curvature, close to 1/R on average only
+    assert np.average(g.k_ref, weights=rest.area) == pytest.approx(1 / R, rel=0.02)
+    assert np.ptp(g.k_ref) * R > 0.1
+    H, Hv = g.mean_curvature(model.initial_unknowns())
+    assert np.all(H == 0) and np.all(Hv == 0)                 # the drawn mesh has H = 0 exactly
+
+
+# ----------------------------------------------------------------------------- the loop
+
+def test_untouched_sphere_stays_a_sphere(ball):
+    p = MechanochemicalModel(h0=H0, radius=R)
+    loop = CoupledLoop(ball, p, TimeStepping(t_final=5.0, dt_initial=0.5))
+    res = loop.run(max_steps=4)
+    assert res.ok
+    assert loop.c.max() == 0.0                                # P(H) = 0 for H <= 0: exactly no chemical
+    # s(0) = Λmax/Λ(0) = 1 + 1.5e-5 (design.md's Λ0 = Λmax): H ≈ (1/s - 1)/R, no sign of a bulge
+    assert np.abs(loop.H_vertex).max() < 1e-5 and loop.H_vertex.max() <= 0
+    disp = np.linalg.norm(loop.points - ball.points, axis=1)
+    assert disp.max() < 1e-3 * R
+    assert res.status == "stationary"                        # nothing changes: it stops early
+
+
+def uniform_growth_energy(x, s, p, area0):
+    """Energy of a sphere of radius x R in the rest state grown by s (volume-conserving thickness)."""
+    hb = p.h0 / s**2
+    ab = p.material.alpha + p.material.beta
+    mem = hb / 4 * 2 * ab * (x**2 / s**2 - 1) ** 2
+    bend = hb**3 / 12 * 2 * ab * ((x - s**2) / (s**2 * R)) ** 2
+    return s**2 * area0 * (mem + bend)
+
+
+def test_uniform_concentration_grows_the_sphere_uniformly(ball):
+    p = MechanochemicalModel(h0=H0, radius=R, D=0.0)
+    c0 = np.full(ball.n_vertices, 1.0)                       # far above c*: s = 1.5 everywhere
+    loop = CoupledLoop(ball, p, TimeStepping(t_final=1.0, dt_initial=0.1), c0=c0)
+    loop.run(max_steps=1)
+    s = float(p.stretch(loop.c[0]))
+    assert np.allclose(loop.s, s, rtol=1e-12)
+    # exact decay with D = 0 and no source (H < 0 everywhere on the grown sphere)
+    assert np.allclose(loop.c, np.exp(-loop.t), rtol=1e-12)
+    x = loop.points
+    r = np.linalg.norm(x - x.mean(axis=0), axis=1)
+    r0 = np.linalg.norm(ball.points - ball.points.mean(axis=0), axis=1)
+    area0 = float(loop.shell.rest.area.sum()) / s**2
+    best = minimize_scalar(lambda y: uniform_growth_energy(y, s, p, area0), bounds=(1.0, 2.0), method="bounded",
+                           options={"xatol": 1e-12})
+    assert np.allclose(r / r0, best.x, rtol=2e-4)             # radius x* R with x* = s (1 - O(h^2/R^2))
+    assert abs(best.x / s - 1) < 1e-3
+    # the energy is the small bending mismatch of design.md's fixed target curvature k0
+    assert loop.energy == pytest.approx(best.fun, rel=0.05)
+    assert loop.energy < 1e-3 * uniform_growth_energy(1.0, s, p, area0)   # vs the ungrown sphere
+    # volume conservation: grown target area x target thickness = A0 h0
+    assert float(np.sum(loop.shell.rest.area * loop.shell.rest.thickness)) == pytest.approx(area0 * H0, rel=1e-12)
+    assert loop.H_vertex.max() < 0                            # a bigger sphere is flatter than k0
+
+
+SPOT = dict(h0=H0, radius=R, lam_min=13.5, D=0.1)
+
+
+@pytest.fixture(scope="module")
+def spot_run(ball):
+    """A spot at the north pole: the initial state, 3 steps, and the states after 0 and 2 steps."""
+    p = MechanochemicalModel(**SPOT)
+    st = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2)
+    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+    initial = {"state": loop.state_dict(), "H": loop.H_vertex.copy(), "points": loop.points.copy()}
+    states = {}
+    records = []
+    for rec in loop.iterate(max_steps=3):
+        records.append(rec)
+        if rec.step == 2:
+            states[2] = loop.state_dict()
+    return p, st, loop, initial, states, records
+
+
+def test_spot_makes_an_outward_bulge_that_feeds_itself(ball, spot_run):
+    p, st, loop, initial, states, records = spot_run
+    top = top_vertex(ball)
+    x0 = initial["points"]
+    radial = np.einsum("ij,ij->i", x0 - ball.points, ball.points / R)
+    assert radial[top] > 0.05 * H0                            # the grown spot bulges outward ...
+    assert radial[top] > 0.8 * radial.max()                   # ... at the pole
+    H = initial["H"]
+    assert H[top] > 0.5 * H.max() > 0                         # positive curvature on the bulge
+    far = ball.points[:, 2] < 0
+    assert np.abs(H[far]).max() < 0.05 * H.max()              # the other hemisphere hardly notices
+    c_init = initial["state"]["c"]
+    assert loop.c[top] > c_init[top]                          # P(H) > β c at the top: c grows there
+    assert np.all(loop.c >= 0) and np.all(np.isfinite(loop.u))
+    assert all(r.stable for r in records) and all(r.n_spots == 1 for r in records)
+    assert [r.step for r in records] == [1, 2, 3]
+    assert all(r.ds <= st.ds_max * (1 + 1e-12) for r in records)
+    assert records[-1].t == pytest.approx(sum(r.dt for r in records), rel=1e-14)
+
+
+def test_resume_from_state_dict_is_bitwise_identical(ball, spot_run, tmp_path):
+    p, st, loop, initial, states, records = spot_run
+    # through a checkpoint file, as the scene runner does
+    save_checkpoint(tmp_path / "ck.npz", states[2], {"t": states[2]["t"]})
+    state, _ = load_checkpoint(tmp_path / "ck.npz")
+    resumed = CoupledLoop.from_state_dict(ball, p, state, st)
+    rec = resumed.advance()
+    assert rec.step == 3 and resumed.t == loop.t and resumed.dt == loop.dt
+    assert np.array_equal(resumed.c, loop.c)
+    assert np.array_equal(resumed.u, loop.u)
+    assert np.array_equal(resumed.H_vertex, loop.H_vertex)
+
+
+def test_a_step_that_cannot_be_made_keeps_the_last_state(ball, spot_run):
+    p, st, loop, initial, states, records = spot_run
+    strict = TimeStepping(t_final=10.0, dt_initial=1.0, ds_max=1e-4, max_cuts=1)
+    lp = CoupledLoop.from_state_dict(ball, p, initial["state"], strict)
+    saved = []
+    res = lp.run(checkpoint=lambda state, rec: saved.append(state))
+    assert res.status == "failed" and "cuts" in res.message
+    assert lp.t == 0 and lp.step == 0
+    assert np.array_equal(lp.c, initial["state"]["c"]) and np.array_equal(lp.u, initial["state"]["u"])
+    assert np.array_equal(lp.shell.rest.metric, lp.growth.rest_state(lp.s).metric)   # rest state restored
+    assert res.steps == 0 and not saved                      # nothing new to checkpoint
+    with pytest.raises(CoupledError, match="cuts"):
+        lp.advance()
+
+
+def test_steep_switch_strong_source_fast_diffusion_adapts(ball):
+    # b = 1000: s jumps across c* within 0.001; w = 1000: c_max = 50; D = 100; dt starts at 1
+    p = MechanochemicalModel(h0=H0, radius=R, lam_min=14.25, b=1000.0, w=1000.0, D=100.0)
+    st = TimeStepping(t_final=10.0, dt_initial=1.0, dt_max=1.0, ramp_ds=0.1)
+    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+    res = loop.run(max_steps=3, keep_records=True)
+    assert res.ok, res.message
+    assert loop.n_rejected > 0                                # the big steps were cut ...
+    assert all(r.ds <= st.ds_max * (1 + 1e-12) for r in res.records)   # ... to the Δs bound
+    assert np.all(np.isfinite(loop.c)) and np.all(np.isfinite(loop.u)) and loop.c.min() >= 0
+    assert np.all(loop.s >= 1.0) and np.all(loop.s <= p.s_max * (1 + 1e-12))
+
+
+def test_design_literal_rest_curvature_k0(ball):
+    # b̄ = k0 s² ā0: the mesh relaxes first; the untouched sphere then has a tiny uniform
+    # H > 0 (the discrete curvature of the relaxed mesh is a bit above 1/R) and c stays below c*
+    # (this mesh is coarse, edge 0.2 R: c -> ~0.015; on the paper's meshes much less)
+    p = MechanochemicalModel(h0=H0, radius=R, rest_curvature="k0")
+    loop = CoupledLoop(ball, p, TimeStepping(t_final=5.0, dt_initial=0.5))
+    assert np.all(loop.growth.k_ref == 1 / R)
+    assert np.abs(loop.H_vertex).max() < 0.02 / R
+    loop.run(max_steps=2)
+    assert 0 <= loop.c.max() < 0.25 * p.c_star
+    assert np.linalg.norm(loop.points - ball.points, axis=1).max() < 1e-2 * R

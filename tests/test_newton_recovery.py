@@ -1,0 +1,182 @@
+"""Newton failure recovery: failed load steps are cut and retried; after a bounded number of cuts the
+run stops with a NewtonError that carries the last converged state; no NaN ever leaves the solver."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from femshell.solvers.newton import NewtonError, follow_load, minimize
+
+
+class SofteningSprings:
+    """n independent springs with a bounded restoring force k tanh(u) under a dead load λ f.
+
+    Π(u) = Σ k log cosh(u_i) − λ f·u. An equilibrium exists only while λ |f_i| < k: the
+    load has a limit point at λ = k / max|f_i|, beyond which Newton cannot converge
+    (the energy decreases without bound) — a snap-through with nothing to snap to.
+    log cosh is evaluated without overflow, so the energy stays finite for any u.
+    """
+
+    def __init__(self, f, k=1.0):
+        self.f = np.asarray(f, float)
+        self.k = k
+        self.load_factor = 0.0
+        self.loads = [object()]            # minimize() takes its residual scale from the load
+        self.calls = {"hessian": 0}
+
+    @staticmethod
+    def _logcosh(u):
+        a = np.abs(u)
+        return a + np.log1p(np.exp(-2 * a)) - np.log(2.0)
+
+    def energy(self, u):
+        return float(self.k * self._logcosh(u).sum() - self.load_factor * self.f @ u)
+
+    def gradient(self, u):
+        return self.k * np.tanh(u) - self.load_factor * self.f
+
+    def load_gradient(self, u):
+        return self.f
+
+    def hessian(self, u):
+        self.calls["hessian"] += 1
+        e = np.exp(-2 * np.abs(u))                  # sech² u = 4 e^{-2|u|} / (1 + e^{-2|u|})², no overflow
+        return sp.diags(self.k * 4 * e / (1 + e) ** 2).tocsr()
+
+    def limit_load(self):
+        return self.k / np.abs(self.f).max()
+
+
+def test_steps_beyond_the_limit_point_are_cut_then_the_run_stops_with_the_last_converged_state():
+    prob = SofteningSprings(f=[1.0, 0.5, 0.25])
+    factors = np.linspace(0.3, 2.1, 7)           # the limit is at λ = 1
+    accepted = []
+    messages = []
+    with pytest.raises(NewtonError) as info:
+        follow_load(prob, np.zeros(3), factors, max_cuts=5, max_iter=30,
+                    callback=lambda lam, res: accepted.append(lam), log=messages.append)
+    exc = info.value
+    assert "failed after 5 cuts" in str(exc)
+    # the steps before the limit point were delivered, those after it were not
+    assert accepted == [lam for lam in factors if lam < 1.0]
+    # the load factor is left at the last converged one, below the limit, and the state carried
+    # by the error is the equilibrium there: finite, with a residual at round-off level
+    last = prob.load_factor
+    assert factors[len(accepted) - 1] <= last < prob.limit_load()
+    u = exc.result.u
+    assert np.all(np.isfinite(u)) and np.isfinite(exc.result.energy)
+    assert np.linalg.norm(prob.gradient(u)) <= 1e-8 * np.linalg.norm(last * prob.f)
+    np.testing.assert_allclose(np.tanh(u), last * prob.f, rtol=1e-8)
+    # every failure was logged as a cut, and the number of cuts is bounded
+    cuts = [m for m in messages if "step cut" in m]
+    assert 5 <= len(cuts) <= 5 * (len(factors) - len(accepted)) + 5
+    # the bisection closed in on the limit point
+    assert last > 0.9 * prob.limit_load()
+
+
+def test_bounded_work_when_every_step_fails():
+    prob = SofteningSprings(f=[1.0])
+    with pytest.raises(NewtonError) as info:
+        follow_load(prob, np.zeros(1), [3.0], max_cuts=3, max_iter=10, log=None)
+    # each cut halves the step; a success in between restores the full remaining step, so at most
+    # 2 (max_cuts + 1) Newton solves of at most max_iter + 1 Hessians each
+    assert prob.calls["hessian"] <= 2 * (3 + 1) * (10 + 1)
+    assert prob.load_factor < prob.limit_load()
+    assert np.all(np.isfinite(info.value.result.u))
+
+
+def test_the_error_result_of_follow_load_has_no_nan():
+    prob = SofteningSprings(f=[1.0, 0.5])
+    with pytest.raises(NewtonError) as info:
+        follow_load(prob, np.zeros(2), [0.5, 2.0], max_cuts=2, max_iter=20, log=None)
+    r = info.value.result
+    assert np.isfinite(r.residual) and np.isfinite(r.energy)
+
+
+def test_cut_steps_start_from_the_state_u0_is_in_equilibrium_at():
+    prob = SofteningSprings(f=[1.0])
+    prob.load_factor = 1.0                         # as ShellModel.__init__ leaves it
+    (res,) = follow_load(prob, np.zeros(1), [0.95], max_cuts=6, max_iter=5, log=None)
+    assert res.converged and np.tanh(res.u[0]) == pytest.approx(0.95)
+
+
+def test_a_step_that_needs_more_iterations_than_allowed_succeeds_after_cuts():
+    prob = SofteningSprings(f=[1.0])
+    with pytest.raises(NewtonError):               # the direct solve needs more than 5 iterations
+        prob.load_factor = 0.95
+        minimize(prob, np.zeros(1), max_iter=5, log=None)
+    prob.load_factor = 0.0                         # u0 = 0 is the equilibrium at load factor 0
+    messages = []
+    (res,) = follow_load(prob, np.zeros(1), [0.95], max_cuts=6, max_iter=5, log=messages.append)
+    assert any("step cut" in m for m in messages)
+    assert res.converged and np.tanh(res.u[0]) == pytest.approx(0.95)
+
+
+def test_a_tiny_iteration_budget_fails_cleanly_and_keeps_the_last_iterate():
+    prob = SofteningSprings(f=[1.0, 0.5])
+    prob.load_factor = 0.99                        # near the limit: many iterations needed
+    with pytest.raises(NewtonError) as info:
+        minimize(prob, np.zeros(2), max_iter=2, log=None)
+    r = info.value.result
+    assert "did not converge in 2 iterations" in str(info.value)
+    assert not r.converged and np.all(np.isfinite(r.u)) and np.isfinite(r.residual)
+    assert len(r.history) == 3
+
+
+class Logarithmic:
+    """Π(u) = Σ (u − a log u), minimum at u = a. From u > 2a the full Newton step
+    (u ↦ 2u − u²/a) lands at u ≤ 0, where the energy is NaN or inf: the line search must back
+    off instead of accepting a non-finite state."""
+
+    def __init__(self, a):
+        self.a = np.asarray(a, float)
+
+    def energy(self, u):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return float(np.sum(u - self.a * np.log(u)))
+
+    def gradient(self, u):
+        return 1 - self.a / u
+
+    def hessian(self, u):
+        return sp.diags(self.a / u**2).tocsr()
+
+
+def test_line_search_never_accepts_a_non_finite_energy():
+    prob = Logarithmic([2.0, 3.0])
+    seen = []
+    energy = prob.energy
+    prob.energy = lambda u: seen.append(np.array(u)) or energy(u)
+    res = minimize(prob, np.array([6.5, 1.0]), log=None)
+    np.testing.assert_allclose(res.u, [2.0, 3.0], rtol=1e-8)
+    assert np.isfinite(res.energy)
+    assert any(np.any(s <= 0) for s in seen)       # a trial did leave the domain ...
+    assert np.all(res.u > 0)                        # ... and was rejected
+
+
+def test_shell_load_steps_too_large_for_newton_are_cut_and_the_run_completes():
+    """Cantilever strip rolled by an end moment to a quarter and a half circle in two requested steps
+    with a budget of 30 Newton iterations: from the flat state the steps need more (a flat start
+    stretches the strip spuriously), they fail, are cut, and the cut steps reach the exact circles."""
+    from femshell.mesh.generators import strip
+    from femshell.shell import Clamped, EdgeMoment, Material, ShellModel, flat_rest_state
+
+    L, W, H, E = 12.0, 1.0, 0.1, 1.2e6
+    mesh = strip(L, W, edge_length=0.5, structured=True, diagonal="alternate")
+    m_max = 2 * np.pi * E * W * H**3 / 12 / L
+    model = ShellModel(mesh, Material(E, 0.0), flat_rest_state(mesh.points, mesh.triangles, H),
+                       [Clamped("left")], [EdgeMoment("right", -m_max / W)])
+    # the reference state is the equilibrium at load factor 0; a fresh ShellModel has load_factor 1,
+    # from which follow_load would start cutting (test_cut_steps_start_from_the_state_u0_is_in_equilibrium_at)
+    model.load_factor = 0.0
+    messages = []
+    results = follow_load(model, model.initial_unknowns(), [0.25, 0.5], max_cuts=4, max_iter=30, rtol=1e-8,
+                          log=messages.append)
+    assert sum("step cut" in m for m in messages) >= 2
+    tip = mesh.topology.boundary_vertex_groups["right"]
+    for frac, res in zip([0.25, 0.5], results):
+        assert res.converged and np.all(np.isfinite(res.u))
+        theta = 2 * np.pi * frac
+        x = model.positions(res.u)
+        assert -(x[tip, 0] - mesh.points[tip, 0]).mean() == pytest.approx(L * (1 - np.sin(theta) / theta), rel=0.02)
+        assert (x[tip, 2] - mesh.points[tip, 2]).mean() == pytest.approx(L * (1 - np.cos(theta)) / theta, rel=0.02)

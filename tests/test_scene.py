@@ -1,0 +1,301 @@
+"""Scene files: validation errors, --set overrides, dry runs that build nothing (no solves here)."""
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from femshell.cli import main
+from femshell.scene import SceneError, list_scenes, load_scene, plan
+from femshell.scene.schema import apply_overrides, dump_toml, parse_override, parse_scene, validate
+
+SPHERE = """
+description = "a test scene"
+[mesh]
+kind = "sphere"
+radius = 5.0
+n_vertices = 200
+[shell]
+thickness = 1.0
+[solver]
+kind = "time"
+t_final = 1.0
+"""
+
+PLATE = """
+description = "a clamped plate"
+[mesh]
+kind = "plate"
+lx = 1.0
+ly = 1.0
+edge_length = 0.25
+structured = true
+[material]
+nu = 0.3
+[shell]
+thickness = 0.01
+thickness_mode = "uniform"
+[growth]
+law = "uniform"
+[[boundary]]
+type = "clamped"
+curve = "left"
+[solver]
+kind = "continuation"
+parameter = "growth.strain"
+stop = 1e-3
+"""
+
+
+def write(tmp_path, text, name="scene.toml"):
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+@pytest.fixture
+def errors_of(tmp_path, monkeypatch):
+    """Errors of a scene text written to ./scene.toml (named as a user would type it)."""
+    monkeypatch.chdir(tmp_path)
+
+    def get(_tmp, text, overrides=()):
+        write(tmp_path, text)
+        with pytest.raises(SceneError) as e:
+            load_scene("scene.toml", overrides)
+        return e.value.errors
+    return get
+
+
+# ----------------------------------------------------------------------------- embedded scenes
+
+def test_embedded_scenes_are_valid_and_described():
+    scenes = list_scenes()
+    assert list(scenes)[0] == "default"
+    assert {"default", "sphere-spots", "sphere-ridges", "sphere-decay", "disk-wrinkles", "clamped-plate-buckling",
+            "cantilever-roll-up"} <= set(scenes)
+    for name, desc in scenes.items():
+        assert desc and "\n" not in desc, name
+        sc = load_scene(name)
+        assert sc.name == name and sc["description"] == desc
+
+
+def test_scenes_command_lists_and_prints(capsys):
+    assert main(["scenes"]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[0].startswith("default ")
+    assert main(["scenes", "disk-wrinkles"]) == 0
+    assert "[mesh]" in capsys.readouterr().out
+    assert main(["scenes", "nope"]) == 2
+
+
+def test_unknown_scene_name_suggests():
+    with pytest.raises(SceneError, match="did you mean 'sphere-spots'"):
+        load_scene("sphere-spot")
+
+
+# ----------------------------------------------------------------------------- validation errors
+
+def test_out_of_range_names_key_and_range(tmp_path, errors_of):
+    errs = errors_of(tmp_path, SPHERE + "[material]\nnu = 0.7\n")
+    assert errs == ["scene.toml: [material] nu = 0.7 is out of range: 0 <= nu <= 0.5"]
+
+
+@pytest.mark.parametrize("extra, expected", [
+    ("[material]\nnuu = 0.3\n", "[material] unknown key 'nuu'; did you mean 'nu'?"),
+    ("[materail]\nnu = 0.3\n", "[materail] is not a section; did you mean [material]?"),
+    ("[growth]\nlaw = \"contractility\"\nc_str = 0.2\n", "unknown key 'c_str'; did you mean 'c_star'?"),
+    ("[growth]\nlaw = \"contractility\"\nlam_min = 20.0\n", "lam_max = 15 is out of range: lam_min = 20 <= lam_max"),
+    ("[growth]\nlaw = \"contractility\"\nb = -1.0\n", "[growth] b = -1.0 is out of range: 0 < b"),
+    ("[chemistry]\nD = -0.1\n", "[chemistry] D = -0.1 is out of range: 0 <= D"),
+    ("[initial]\nwidth = \"wide\"\n", "[initial] width = \"wide\" must be a number, got a string"),
+    ("[output]\nevery = 1.5\n", "[output] every = 1.5 must be an integer"),
+    ("[output]\nfields = [\"c\", \"Lamda\"]\n", "unknown field 'Lamda'; did you mean 'Lambda'?"),
+    ("[[boundary]]\ntype = \"clamped\"\ncurve = \"outer\"\n", "a sphere mesh is closed and has no boundary curve"),
+    ("[[loads]]\ntype = \"dead_pressure\"\npressure = 1.0\n", "not supported by the time loop"),
+])
+def test_each_error_is_one_clear_line(tmp_path, errors_of, extra, expected):
+    errs = errors_of(tmp_path, SPHERE + extra)
+    assert any(expected in e for e in errs), errs
+    assert all(e.startswith("scene.toml: ") and "\n" not in e for e in errs)
+
+
+def test_shell_thickness_type_and_range(tmp_path, errors_of):
+    errs = errors_of(tmp_path, SPHERE.replace("thickness = 1.0", 'thickness = "2"'))
+    assert any("[shell] thickness = \"2\" must be a number, got a string" in e for e in errs)
+    errs = errors_of(tmp_path, SPHERE.replace("thickness = 1.0", "thickness = 0.0"))
+    assert any("[shell] thickness = 0.0 is out of range: 0 < thickness" in e for e in errs)
+
+
+def test_inconsistent_combinations(tmp_path, errors_of):
+    errs = errors_of(tmp_path, PLATE + "[chemistry]\nD = 0.1\n")
+    assert any("[chemistry] is given but solver.kind = \"continuation\" has no chemistry" in e for e in errs)
+    errs = errors_of(tmp_path, PLATE.replace('"growth.strain"', '"growth.strian"'))
+    assert any("parameter = \"growth.strian\" is not one of" in e and "did you mean \"growth.strain\"" in e
+               for e in errs)
+    errs = errors_of(tmp_path, PLATE.replace('"growth.strain"', '"loads.factor"'))
+    assert any("parameter = \"loads.factor\" but the scene has no [[loads]]" in e for e in errs)
+    errs = errors_of(tmp_path, PLATE.replace('curve = "left"', 'curve = "lft"'))
+    assert any("curve = \"lft\" is not a boundary curve of the plate mesh; did you mean \"left\"?" in e for e in errs)
+    errs = errors_of(tmp_path, PLATE.replace('kind = "continuation"', 'kind = "time"'))
+    assert any("law = \"uniform\" cannot run in time" in e for e in errs)
+    errs = errors_of(tmp_path, PLATE + "[mesh2]\n")
+    assert len(errs) == 1 and "[mesh2] is not a section; did you mean [mesh]?" in errs[0]
+
+
+def test_key_of_another_kind_is_named(tmp_path, errors_of):
+    errs = errors_of(tmp_path, SPHERE.replace("radius = 5.0", "radius = 5.0\nwidth = 2.0"))
+    assert any("[mesh] width is not used by kind = \"sphere\"" in e for e in errs)
+    errs = errors_of(tmp_path, PLATE.replace("stop = 1e-3", "stop = 1e-3\nt_final = 3.0"))
+    assert any("[solver] t_final is not used by kind = \"continuation\"" in e for e in errs)
+
+
+def test_missing_mesh_file_and_bad_toml(tmp_path, errors_of):
+    errs = errors_of(tmp_path, SPHERE.replace('kind = "sphere"\nradius = 5.0\nn_vertices = 200',
+                                              'file = "meshes/nothing.vtu"'))
+    assert any("[mesh] file = \"meshes/nothing.vtu\": no such file" in e for e in errs)
+    errs = errors_of(tmp_path, SPHERE + "[material\n")
+    assert len(errs) == 1 and "not valid TOML" in errs[0]
+
+
+def test_all_errors_are_reported_at_once(tmp_path, errors_of):
+    errs = errors_of(tmp_path, SPHERE + "[material]\nnu = 0.9\nE = -1.0\n")
+    assert len(errs) == 2
+
+
+# ----------------------------------------------------------------------------- overrides
+
+def test_parse_override_values():
+    assert parse_override("solver.t_final=5") == (["solver", "t_final"], 5)
+    assert parse_override("mesh.kind=disk") == (["mesh", "kind"], "disk")
+    assert parse_override("output.pictures=false") == (["output", "pictures"], False)
+    assert parse_override("initial.pole=[0, 1, 0]") == (["initial", "pole"], [0, 1, 0])
+    with pytest.raises(SceneError, match="expected KEY=VALUE"):
+        parse_override("solver.t_final")
+
+
+def test_overrides_apply_and_are_validated(tmp_path):
+    p = write(tmp_path, SPHERE.replace("n_vertices = 200", "edge_length = 1.0"))
+    sc = load_scene(str(p), ["mesh.n_vertices=150", "solver.t_final=0.5"])
+    assert sc["mesh"]["n_vertices"] == 150 and sc["mesh"]["edge_length"] is None   # the last resolution wins
+    assert sc["solver"]["t_final"] == 0.5
+    with pytest.raises(SceneError, match=r"\[solver\] unknown key 't_finl'; did you mean 't_final'"):
+        load_scene(str(p), ["solver.t_finl=3"])
+    raw = parse_scene(PLATE, "x")
+    out = apply_overrides(raw, ["boundary.0.curve=right"])
+    assert out["boundary"][0]["curve"] == "right" and raw["boundary"][0]["curve"] == "left"
+
+
+def test_dump_toml_round_trip():
+    for name in list_scenes():
+        sc = load_scene(name)
+        again = validate(parse_scene(dump_toml(sc.data), "x"), name=name, label="x", source=sc.source)
+        assert again.data == sc.data, name
+
+
+# ----------------------------------------------------------------------------- the command line
+
+def test_cli_bad_scene_exit_2_no_traceback_and_no_output_touched(tmp_path, capsys):
+    p = write(tmp_path, SPHERE + "[material]\nnu = 0.7\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("precious")
+    code = main(["run", str(p), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.strip() == f"femshell run: error: {p}: [material] nu = 0.7 is out of range: 0 <= nu <= 0.5"
+    assert "Traceback" not in err
+    assert sorted(x.name for x in out.iterdir()) == ["keep.txt"]
+    assert not (tmp_path / "scene-out").exists()
+
+
+def test_cli_bad_scene_in_a_subprocess(tmp_path):
+    p = write(tmp_path, PLATE.replace('curve = "left"', 'curve = "outer"'))
+    r = subprocess.run([sys.executable, "-m", "femshell.cli", "run", str(p), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    assert "is not a boundary curve of the plate mesh" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_run_help_documents_set():
+    r = subprocess.run([sys.executable, "-m", "femshell.cli", "run", "--help"], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0
+    for word in ("--set KEY=VALUE", "--resume", "--overwrite", "--dry-run", "--max-steps"):
+        assert word in r.stdout
+
+
+# ----------------------------------------------------------------------------- dry runs build nothing
+
+DRY = """
+import sys, json
+from femshell.shell import model
+def refuse(*a, **k):
+    raise AssertionError("a dry run built a ShellModel")
+model.ShellModel.__init__ = refuse          # a dry run must not even build the shell
+from femshell.scene import run_scene
+run_scene(sys.argv[1], dry_run=True, overrides=sys.argv[2:])
+mods = ["femshell.coupled", "femshell.chemistry", "femshell.solvers.continuation", "pyvista", "jax"]
+print(json.dumps({m: m in sys.modules for m in mods}))
+"""
+
+
+@pytest.mark.parametrize("scene, overrides, imported", [
+    ("clamped-plate-buckling", ["mesh.edge_length=0.3"],
+     {"femshell.coupled": False, "femshell.chemistry": False, "femshell.solvers.continuation": False}),
+    ("default", ["mesh.n_vertices=200"],
+     {"femshell.coupled": False, "femshell.chemistry": False, "femshell.solvers.continuation": False}),
+])
+def test_dry_run_builds_and_imports_nothing(tmp_path, scene, overrides, imported):
+    r = subprocess.run([sys.executable, "-c", DRY, scene, *overrides], capture_output=True, text=True, timeout=180,
+                       cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.strip().splitlines()
+    mods = json.loads(lines[-1])
+    for m, v in imported.items():
+        assert mods[m] is v, (m, mods)
+    assert not mods["pyvista"]
+    text = "\n".join(lines[:-1])
+    assert "unknowns" in text and "nothing computed" in text
+    assert list(tmp_path.iterdir()) == []           # nothing written
+
+
+def test_plan_flags(tmp_path):
+    sc = load_scene("clamped-plate-buckling", ["mesh.edge_length=0.3"])
+    lines, flags = plan(sc)
+    assert flags["continuation"] and not flags["chemistry"] and not flags["time_loop"]
+    assert "not built  chemistry, diffusion operator, time loop, loads" in "\n".join(lines)
+    sc = load_scene("default", ["mesh.n_vertices=200"])
+    _, flags = plan(sc)
+    assert flags["chemistry"] and flags["time_loop"] and not flags["diffusion_operator"] and not flags["continuation"]
+    _, flags = plan(load_scene("default", ["mesh.n_vertices=200", "chemistry.D=0.4"]))
+    assert flags["diffusion_operator"]
+    _, flags = plan(load_scene("cantilever-roll-up", ["mesh.edge_length=1.0"]))
+    assert flags["loads"] and flags["unknowns"] > 0 and flags["solver"] == "static"
+
+
+def test_dry_run_cli(capsys, tmp_path):
+    assert main(["run", "disk-wrinkles", "--dry-run", "--set", "mesh.edge_length=2.5", "--set",
+                 "mesh.inner_edge_length=1.5", "--out", str(tmp_path / "d")]) == 0
+    out = capsys.readouterr().out
+    assert "pseudo-arclength continuation in growth.strain" in out and "not built  chemistry" in out
+    assert not (tmp_path / "d").exists()
+
+
+def test_mesh_file_scene_and_its_curves(tmp_path):
+    from femshell.mesh import plate, write_mesh
+    from femshell.scene import make_mesh
+
+    write_mesh(plate(1.0, 1.0, edge_length=0.25, structured=True), tmp_path / "p.vtu")
+    text = PLATE.replace('kind = "plate"\nlx = 1.0\nly = 1.0\nedge_length = 0.25\nstructured = true',
+                         'file = "p.vtu"')
+    p = write(tmp_path, text)
+    sc = load_scene(str(p))
+    assert sc["mesh"]["kind"] == "file" and sc["mesh"]["file"] == str((tmp_path / "p.vtu").resolve())
+    lines, flags = plan(sc)
+    assert flags["n_vertices"] == 25
+    p = write(tmp_path, text.replace('curve = "left"', 'curve = "west"'))
+    with pytest.raises(SceneError, match=r"curve = \"west\" is not a boundary curve of p.vtu \(curves: "):
+        make_mesh(load_scene(str(p)))

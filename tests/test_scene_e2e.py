@@ -1,0 +1,257 @@
+"""End to end through the command line: every embedded scene at a tiny size, outputs, resume, kill -9.
+
+Runs go through ``femshell.cli.main`` in this process (JAX compiles once for all of
+them); the kill -9 test runs ``femshell run`` in a subprocess.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import meshio
+import numpy as np
+import pytest
+
+from femshell.cli import main
+from femshell.io import load_checkpoint, read_pvd
+from femshell.scene import list_scenes
+
+SPHERE_TINY = ["mesh.n_vertices=150", "solver.t_final=0.04", "output.every=1"]
+TINY = {
+    "default": SPHERE_TINY,
+    "sphere-spots": SPHERE_TINY,
+    "sphere-ridges": SPHERE_TINY,
+    "sphere-decay": SPHERE_TINY,
+    "disk-wrinkles": ["mesh.edge_length=2.5", "mesh.inner_edge_length=1.5", "solver.max_steps=4", "solver.n_eigs=2",
+                      "solver.stop=0.3"],
+    "clamped-plate-buckling": ["mesh.edge_length=0.4", "solver.stop=1.1e-4", "solver.switch_stop=1.05e-4",
+                               "solver.max_steps=6", "solver.n_eigs=2"],
+    "cantilever-roll-up": ["mesh.edge_length=0.5", "solver.steps=8"],
+}
+WITH_PICTURES = {"default", "clamped-plate-buckling"}
+
+
+def sets(items):
+    out = []
+    for s in items:
+        out += ["--set", s]
+    return out
+
+
+def run(scene, out, extra=(), overrides=(), pictures=False):
+    args = ["run", scene, "--out", str(out), "-q", *sets(overrides)]
+    if not pictures:
+        args += ["--set", "output.pictures=false"]
+    return main(args + list(extra))
+
+
+def check_series(out, min_frames=2):
+    entries = read_pvd(out / "series.pvd")
+    assert len(entries) >= min_frames
+    times = [t for t, _ in entries]
+    assert times == sorted(times) and len(set(times)) == len(times)
+    last = None
+    for _, path in entries:
+        m = meshio.read(path)
+        tri = [c for c in m.cells if c.type == "triangle"][0].data
+        assert m.points.shape[1] == 3 and tri.shape[1] == 3 and tri.max() < len(m.points)
+        assert np.all(np.isfinite(m.points))
+        for name, v in m.point_data.items():
+            assert len(v) == len(m.points) and np.all(np.isfinite(v)), name
+        for name, v in m.cell_data.items():
+            assert len(v[0]) == len(tri) and np.all(np.isfinite(v[0])), name
+        if "c" in m.point_data:
+            assert m.point_data["c"].min() >= 0
+        last = m
+    return entries, last
+
+
+def test_tiny_set_covers_every_embedded_scene():
+    assert set(TINY) == set(list_scenes())
+
+
+@pytest.mark.parametrize("scene", sorted(TINY))
+def test_embedded_scene_runs_tiny(scene, tmp_path):
+    out = tmp_path / scene
+    code = run(scene, out, overrides=TINY[scene], pictures=scene in WITH_PICTURES)
+    summary = json.loads((out / "summary.json").read_text())
+    assert code == 0, summary
+    assert summary["scene"] == scene and summary["steps"] >= 1 and summary["wall_s"] > 0
+    entries, m = check_series(out)
+    assert {"displacement", "H"} <= set(m.point_data)
+    assert {"thickness", "energy_density", "stretch"} <= set(m.cell_data)
+    assert np.all(m.cell_data["thickness"][0] > 0)
+    ed = m.cell_data["energy_density"][0]
+    assert np.all(ed >= -1e-12 * max(np.abs(ed).max(), 1e-300))      # >= 0 up to round-off
+    kind = summary["solver"]
+    if kind == "time":
+        assert {"c", "Lambda"} <= set(m.point_data)
+        assert summary["status"] in ("t_final", "stationary")
+        assert summary["final"]["pattern"]["n_spots"] >= 0
+        lam = m.point_data["Lambda"]
+        assert np.all((lam >= 10 - 1e-9) & (lam <= 15 + 1e-9))
+    elif kind == "continuation":
+        assert (out / "branch.csv").exists()
+        assert summary["final"]["rows"] >= 2
+    else:
+        assert summary["final"]["load_factor"] == 1.0
+    if scene in WITH_PICTURES:
+        pics = summary["files"]["pictures"]
+        assert "pictures/top.png" in pics and "pictures/side.png" in pics
+        if kind == "continuation":
+            assert "pictures/bifurcation.png" in pics
+        for p in pics:
+            assert (out / p).stat().st_size > 1000
+    state, meta = load_checkpoint(out / "checkpoint.npz")
+    assert meta["step"] == summary["steps"]
+
+
+# ----------------------------------------------------------------------------- resume
+
+RESUME = ["mesh.n_vertices=150", "solver.t_final=0.12", "output.every=1"]
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    out = tmp_path_factory.mktemp("full") / "run"
+    assert run("default", out, overrides=RESUME) == 0
+    return out
+
+
+def assert_same_run(a, b):
+    sa, ma = load_checkpoint(a / "checkpoint.npz")
+    sb, mb = load_checkpoint(b / "checkpoint.npz")
+    assert ma["step"] == mb["step"]
+    for k in ("c", "u"):
+        assert np.array_equal(sa[k], sb[k]), k          # bit for bit
+    assert sa["t"] == sb["t"] and sa["dt"] == sb["dt"]
+    ea, eb = read_pvd(a / "series.pvd"), read_pvd(b / "series.pvd")
+    assert [t for t, _ in ea] == [t for t, _ in eb]
+    fa, fb = meshio.read(ea[-1][1]), meshio.read(eb[-1][1])
+    assert np.array_equal(fa.points, fb.points)
+    for k in fa.point_data:
+        assert np.array_equal(fa.point_data[k], fb.point_data[k]), k
+
+
+def test_resume_after_max_steps_is_bitwise_identical(uninterrupted, tmp_path):
+    out = tmp_path / "run"
+    assert run("default", out, extra=["--max-steps", "2"], overrides=RESUME) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "paused" and s["steps"] == 2
+    # a second run into the same directory without --resume is refused, nothing touched
+    before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    assert run("default", out, overrides=RESUME) == 2
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
+    assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
+    assert json.loads((out / "summary.json").read_text())["resumes"] == 1
+    assert_same_run(uninterrupted, out)
+    # resuming a finished run does nothing
+    assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
+
+
+def test_ctrl_c_checkpoints_and_resumes(uninterrupted, tmp_path, monkeypatch):
+    from femshell.coupled import CoupledLoop
+
+    out = tmp_path / "run"
+    real = CoupledLoop.advance
+    calls = {"n": 0}
+
+    def interrupting(self):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(self)
+
+    monkeypatch.setattr(CoupledLoop, "advance", interrupting)
+    assert run("default", out, overrides=RESUME) == 130
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and s["steps"] == 2 and "--resume" in s["message"]
+    assert load_checkpoint(out / "checkpoint.npz")[1]["step"] == 2
+    monkeypatch.setattr(CoupledLoop, "advance", real)
+    assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
+    assert_same_run(uninterrupted, out)
+
+
+def test_failed_step_stops_with_checkpoint_and_no_nan(tmp_path, monkeypatch):
+    from femshell.coupled import CoupledError, CoupledLoop
+
+    real = CoupledLoop.advance
+    calls = {"n": 0}
+
+    def failing(self):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise CoupledError("step 2: Newton diverged (simulated)")
+        return real(self)
+
+    monkeypatch.setattr(CoupledLoop, "advance", failing)
+    out = tmp_path / "run"
+    assert run("default", out, overrides=RESUME) == 1
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and "Newton diverged" in s["message"] and s["steps"] == 1
+    assert load_checkpoint(out / "checkpoint.npz")[1]["step"] == 1
+    check_series(out, min_frames=2)
+
+
+def test_overwrite_and_render(uninterrupted, tmp_path, capsys):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    assert run("default", out, overrides=["mesh.n_vertices=150", "solver.t_final=0.02"]) == 0
+    assert run("default", out, extra=["--overwrite"], overrides=["mesh.n_vertices=150", "solver.t_final=0.02"]) == 0
+    assert (out / "notes.txt").read_text() == "mine"
+    assert main(["run", "default", "--out", str(out), "--resume", "--overwrite"]) == 2
+    capsys.readouterr()
+    assert main(["render", str(uninterrupted), "--every", "2"]) == 0
+    assert "rendered" in capsys.readouterr().out
+    assert (uninterrupted / "movie.gif").stat().st_size > 1000
+    assert sorted(p.name for p in (uninterrupted / "pictures").glob("top_*.png"))
+    assert main(["render", str(tmp_path / "nothing")]) == 2
+
+
+def test_continuation_resume(tmp_path):
+    over = ["mesh.edge_length=0.4", "solver.stop=1.1e-4", "solver.max_steps=5", "solver.n_eigs=2",
+            "solver.switch_branch=false"]
+    out = tmp_path / "run"
+    assert run("clamped-plate-buckling", out, extra=["--max-steps", "2"], overrides=over) == 0
+    assert json.loads((out / "summary.json").read_text())["status"] == "paused"
+    assert run("clamped-plate-buckling", out, extra=["--resume"], overrides=over) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "done" and s["final"]["final_value"] == pytest.approx(1.1e-4)
+    steps = [r for r in s["final"]["special_points"]]
+    assert all(p["kind"] in ("branch", "fold", "possible_branch") for p in steps)
+    entries, _ = check_series(out, min_frames=3)
+    assert [t for t, _ in entries] == list(range(len(entries)))
+
+
+# ----------------------------------------------------------------------------- kill -9
+
+def test_kill_9_loses_no_finished_step(uninterrupted, tmp_path):
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "femshell.cli", "run", "default", "--out", str(out), "-q",
+           "--set", "output.pictures=false", *sets(RESUME)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+    step = -1
+    deadline = time.time() + 600
+    try:
+        while time.time() < deadline and proc.poll() is None:
+            try:
+                step = load_checkpoint(out / "checkpoint.npz")[1]["step"]
+            except Exception:
+                step = -1
+            if step >= 2:
+                os.kill(proc.pid, signal.SIGKILL)
+                break
+            time.sleep(0.05)
+    finally:
+        if proc.poll() is None and step < 2:
+            os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert step >= 2, proc.stderr.read().decode()[-2000:]
+    killed_at = load_checkpoint(out / "checkpoint.npz")[1]["step"]
+    assert killed_at >= step                 # the checkpoint seen before the kill is still there
+    assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
+    assert_same_run(uninterrupted, out)
