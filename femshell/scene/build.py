@@ -38,7 +38,7 @@ def _scenes_dir():
 
 def list_scenes() -> dict:
     """Embedded scenes: name -> one-line description (sorted by name, ``default`` first)."""
-    import tomllib
+    from .schema import tomllib
 
     out = {}
     d = _scenes_dir()

@@ -941,7 +941,6 @@ class ContinuationRunner(BaseRunner):
 
     # --- the loop: continuation() drives, the callback reports
     def loop(self):
-        so = self.scene["solver"]
         while self.phase != "done":
             if self.phase == "primary":
                 self._segment(primary=True)

@@ -45,7 +45,10 @@ from __future__ import annotations
 import copy
 import difflib
 import math
-import tomllib
+try:
+    import tomllib
+except ImportError:  # Python 3.10
+    import tomli as tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
