@@ -73,3 +73,30 @@ def test_sphere_bending_measures_its_own_curvature():
     a, b = model.fundamental_forms(model.initial_unknowns())
     H = mean_curvature(a, b)
     assert np.median(H) == pytest.approx(1 / 3.0, rel=0.02)
+
+
+@pytest.mark.parametrize("bcs", [
+    [],
+    [Clamped("left"), SimplySupported("bottom")],
+    [Symmetry("x"), Symmetry("y", 0.0), Clamped("top")],
+])
+def test_split_element_hessian_equals_autodiff_hessian(square, bcs):
+    """The split Hessian (metric + 13-unknown edge parts) is jax.hessian of the element energy."""
+    import jax
+
+    from femshell.shell import element as el
+
+    rng = np.random.default_rng(3)
+    rest = uniform_growth(square.points, square.triangles, thickness=0.1, strain=0.2, k0=0.7)
+    rest.metric[:, 0, 0] *= 1.1
+    model = ShellModel(square, Material(1.0, 0.35), rest, bcs, remove_rigid_modes=False)
+    q = model.full(model.initial_unknowns() + 0.05 * rng.standard_normal(model.n_free))
+    args = model._element_args(q)
+    reference = np.asarray(jax.jit(jax.vmap(jax.hessian(el.element_energy), in_axes=el._AXES))(*args))
+    interior = (model.edge_kind_el == el.INTERIOR).all(axis=1)
+    scale = np.abs(reference).max(axis=(1, 2))[:, None, None]
+    for H in (el.batch_hessian(*args), el.batch_hessian_grouped(interior, *args)):
+        assert np.all(np.abs(np.asarray(H) - reference) <= 1e-12 * scale)
+    if interior.any():
+        H = el.batch_hessian_interior(*[np.asarray(a)[interior] if i not in (5, 6) else a for i, a in enumerate(args)])
+        assert np.all(np.abs(H - reference[interior]) <= 1e-12 * scale[interior])

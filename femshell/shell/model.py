@@ -210,7 +210,8 @@ class ShellModel:
     def hessian(self, u):
         """∂²Π/∂u² as a CSR matrix over the free unknowns (symmetric, possibly indefinite)."""
         q = self.full(u)
-        K = self.assembler.matrix(np.asarray(el.batch_hessian(*self._element_args(q))))
+        interior = (self.edge_kind_el == el.INTERIOR).all(axis=1)  # these skip the boundary branches
+        K = self.assembler.matrix(np.asarray(el.batch_hessian_grouped(interior, *self._element_args(q))))
         for i, load in enumerate(self.loads):
             blocks = load.hessian_blocks(q)
             if blocks is None:
