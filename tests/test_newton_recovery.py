@@ -56,7 +56,7 @@ def test_steps_beyond_the_limit_point_are_cut_then_the_run_stops_with_the_last_c
         follow_load(prob, np.zeros(3), factors, max_cuts=5, max_iter=30,
                     callback=lambda lam, res: accepted.append(lam), log=messages.append)
     exc = info.value
-    assert "failed after 5 cuts" in str(exc)
+    assert "cannot be cut further (max_cuts = 5" in str(exc)
     # the steps before the limit point were delivered, those after it were not
     assert accepted == [lam for lam in factors if lam < 1.0]
     # the load factor is left at the last converged one, below the limit, and the state carried
@@ -78,11 +78,50 @@ def test_bounded_work_when_every_step_fails():
     prob = SofteningSprings(f=[1.0])
     with pytest.raises(NewtonError) as info:
         follow_load(prob, np.zeros(1), [3.0], max_cuts=3, max_iter=10, log=None)
-    # each cut halves the step; a success in between restores the full remaining step, so at most
-    # 2 (max_cuts + 1) Newton solves of at most max_iter + 1 Hessians each
-    assert prob.calls["hessian"] <= 2 * (3 + 1) * (10 + 1)
+    # each cut halves the step, a success doubles it back once, and the step is never cut below
+    # 2**-max_cuts of the interval: at most 2**max_cuts converged and 2**max_cuts + max_cuts + 1
+    # failed Newton solves, of at most max_iter + 1 Hessians each (here: 3 + 4 solves)
+    assert prob.calls["hessian"] <= (2 * 2**3 + 3 + 1) * (10 + 1)
     assert prob.load_factor < prob.limit_load()
     assert np.all(np.isfinite(info.value.result.u))
+
+
+class Drifting:
+    """Π(u) = Σ log cosh(u − L λ²): the equilibrium u = L λ² moves along a curved path, and Newton
+    (convex energy, bounded gradient) needs more iterations the farther the start is from it. With a
+    small iteration budget every step of the path must be short: the path needs many small steps."""
+
+    def __init__(self, L):
+        self.L = L
+        self.load_factor = 0.0
+
+    def _x(self, u):
+        return u - self.L * self.load_factor**2
+
+    def energy(self, u):
+        a = np.abs(self._x(u))
+        return float(np.sum(a + np.log1p(np.exp(-2 * a)) - np.log(2.0)))
+
+    def gradient(self, u):
+        return np.tanh(self._x(u))
+
+    def hessian(self, u):
+        e = np.exp(-2 * np.abs(self._x(u)))
+        return sp.diags(4 * e / (1 + e) ** 2).tocsr()
+
+
+def test_a_path_that_needs_many_small_steps_is_followed_to_the_end():
+    # With max_iter = 3, steps of 1/16 of the interval fail all along the path and steps of 1/32
+    # converge: 32 steps are needed. A success must not restore the whole remaining interval while
+    # the cuts keep counting (the old stepping): that spent all max_cuts cuts on the first two steps
+    # and stopped at load factor 1/32.
+    prob = Drifting(L=200.0)
+    messages = []
+    (res,) = follow_load(prob, np.zeros(2), [1.0], max_cuts=6, max_iter=3, log=messages.append)
+    assert res.converged
+    np.testing.assert_allclose(res.u, 200.0, rtol=1e-9)
+    n_cuts = sum("step cut" in m for m in messages)
+    assert 10 <= n_cuts <= 2**6 + 6 + 1             # many cuts along the path, within the bound
 
 
 def test_the_error_result_of_follow_load_has_no_nan():
@@ -166,8 +205,8 @@ def test_shell_load_steps_too_large_for_newton_are_cut_and_the_run_completes():
     m_max = 2 * np.pi * E * W * H**3 / 12 / L
     model = ShellModel(mesh, Material(E, 0.0), flat_rest_state(mesh.points, mesh.triangles, H),
                        [Clamped("left")], [EdgeMoment("right", -m_max / W)])
-    # the reference state is the equilibrium at load factor 0; a fresh ShellModel has load_factor 1,
-    # from which follow_load would start cutting (test_cut_steps_start_from_the_state_u0_is_in_equilibrium_at)
+    # the reference state is the equilibrium at load factor 0 (follow_load's default start), whatever
+    # load_factor a fresh ShellModel has (test_cut_steps_start_from_the_state_u0_is_in_equilibrium_at)
     model.load_factor = 0.0
     messages = []
     results = follow_load(model, model.initial_unknowns(), [0.25, 0.5], max_cuts=4, max_iter=30, rtol=1e-8,

@@ -255,10 +255,16 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
 
     ``u0`` is the equilibrium at load factor ``start`` (0: the unloaded state).
     ``problem.load_factor`` is set to each value of ``factors`` in turn. A step
-    whose Newton solve fails is cut in half (up to ``max_cuts`` times) and retried
-    from the last converged state; after that a :class:`NewtonError` carries the
-    last converged state. ``problem.accept(u)`` (if present) is called after each
-    converged step; ``callback(factor, result)`` after each requested factor.
+    whose Newton solve fails is cut in half and retried from the last converged
+    state; a converged step doubles the step again (never beyond the requested
+    factor), so a stretch of the path that needs small steps is crossed in small
+    steps, and larger ones follow it. The step is never cut below ``2**-max_cuts``
+    of the interval to the requested factor: a failure at that size raises a
+    :class:`NewtonError` that carries the last converged state. The work is bounded:
+    per requested factor at most ``2**max_cuts`` converged and
+    ``2**max_cuts + max_cuts + 1`` failed Newton solves.
+    ``problem.accept(u)`` (if present) is called after each converged step;
+    ``callback(factor, result)`` after each requested factor.
     Returns the list of :class:`NewtonResult` at the requested factors.
     """
     u = np.array(u0, float)
@@ -267,8 +273,9 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
     previous = None  # (load factor, state) of the converged step before, for the secant predictor
     out = []
     for target in factors:
-        step = target - current
-        cuts = 0
+        interval = target - current
+        min_step = abs(interval) * 0.5 ** max_cuts * (1 - 1e-12)
+        step = interval
         while True:
             trial = current + step
             problem.load_factor = trial
@@ -282,14 +289,14 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
             try:
                 res = minimize(problem, start, log=None, **newton_options)
             except NewtonError as exc:
-                cuts += 1
-                if cuts > max_cuts:
+                if abs(step) * 0.5 < min_step:
                     problem.load_factor = current
                     if last is None:  # nothing converged yet: describe u0 as it is
                         g = problem.gradient(u)
                         last = _result(u, False, 0, problem.energy(u), float(np.linalg.norm(g)), 1.0, None, [], {})
-                    raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed after {max_cuts} cuts "
-                                      f"(last converged load factor {current:.6g}): {exc}", last)
+                    raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed, and the step cannot be "
+                                      f"cut further (max_cuts = {max_cuts}: not below 2**-{max_cuts} of the interval "
+                                      f"to {target:.6g}; last converged load factor {current:.6g}): {exc}", last)
                 step *= 0.5
                 if log:
                     log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
@@ -300,7 +307,10 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
                 problem.accept(u)
             if abs(current - target) <= 1e-14 * max(1.0, abs(target)):
                 break
-            step = target - current
+            # a converged step earns one doubling back, not the whole remaining interval at once: a
+            # stretch that needs many small steps would otherwise pay a failed solve for every one
+            remaining = target - current
+            step = remaining if abs(2.0 * step) >= abs(remaining) else 2.0 * step
         if log:
             log(f"  load factor {target:.6g}: {res.summary()}")
         if callback:

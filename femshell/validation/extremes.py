@@ -13,9 +13,10 @@ Each row has a pass criterion (a tolerance) unless it only reports a measurement
 2. **Frustrated spherical cap** (full level): a free cap of a sphere (R = 2, opening
    0.5 rad, h = 0.02) grows by s (ā = s² a0, b̄ = s² b0, h̄ = h/s²: it keeps wanting the
    curvature 1/R while its area grows — metric and curvature are incompatible, as in the
-   coupled loop). Reported: the stretch reached with Newton converging to rtol 1e-8 and
-   the reason it stops (see the docs, "extreme cases": near s ≈ 1.5 Newton converges only
-   linearly — an almost singular Hessian along a soft, near-isometric mode of the free cap).
+   coupled loop). Reported: the stretch reached with Newton converging to rtol 1e-8, and
+   whether a Newton failure stopped it (earlier versions stopped near s ≈ 1.5, where Newton
+   converged only linearly along a soft, near-isometric mode of the free cap; the full-level
+   run of 2026-11-23 reaches s = 2). Pass: every accepted state is a stable minimum.
 3. **Steep sigmoid** Λ(c), s(c), ds/dc for b = 1 … 1000 and c − c* = ±1e3 under
    ``np.errstate(over/invalid/divide="raise")``. Pass: 0 non-finite values, 0 violations of
    monotonicity and bounds.
@@ -41,6 +42,8 @@ SOURCE = ("pass criteria from the mathematics: stability from the Hessian inerti
 
 LEVELS = {
     "quick": {"disk_edge": 2.0, "disk_steps": 10, "cap": False},
+    # full: h = 0.7 (833 vertices): 7-10 min here (load 2-4), 5 cuts; before grow_in_steps let the step grow
+    # back after cuts it ran 34 min (load 3-10) and was stopped at s = 1.85 with its step cut to 1e-4
     "full": {"disk_edge": 0.7, "disk_steps": 10, "cap": True},
 }
 
@@ -53,7 +56,8 @@ def grow_in_steps(model, rest_at, s_target, n_steps=10, max_cuts=6, callback=Non
     converged states, with one residual scale for all steps (the imbalance of the start under
     the full growth ``s_target``) unless ``residual_scale`` is given; a failed Newton
     solve halves the step and retries, at most ``max_cuts`` times in a row (a success resets
-    the count but keeps the smaller step). Returns ``(s_reached, last NewtonResult, stats)``
+    the count and doubles the step again, up to the initial ``(s_target - 1) / n_steps``: a
+    stretch of the path that needs small steps does not make the rest of the path small-stepped). Returns ``(s_reached, last NewtonResult, stats)``
     with stats = {"iterations", "cuts", "steps", "all_stable"}; a NewtonError after too many
     cuts leaves the model at the last converged stretch and carries it in ``stats`` of the
     error's ``.stats`` attribute.
@@ -67,11 +71,11 @@ def grow_in_steps(model, rest_at, s_target, n_steps=10, max_cuts=6, callback=Non
         # for ever smaller absolute residuals.)
         model.set_rest_state(rest_at(s_target))
         newton["residual_scale"] = float(np.linalg.norm(model.gradient(u)))
-    step = (s_target - 1.0) / n_steps
+    step = step0 = (s_target - 1.0) / n_steps
     cuts = 0
     res = None
     previous = None          # (s, u) of the converged step before: secant predictor as in follow_load
-    stats = {"iterations": 0, "cuts": 0, "steps": 0, "all_stable": True, "s": 1.0}
+    stats = {"iterations": 0, "cuts": 0, "steps": 0, "all_stable": True, "s": 1.0, "unstable_at": []}
     while s < s_target - 1e-14:
         trial = min(s + step, s_target)
         model.set_rest_state(rest_at(trial))
@@ -93,12 +97,16 @@ def grow_in_steps(model, rest_at, s_target, n_steps=10, max_cuts=6, callback=Non
                 raise
             step /= 2
             continue
+        if cuts == 0:
+            step = min(2.0 * step, step0)   # grow back after a cut stretch, one doubling per clean step
         cuts = 0
         previous = (s, u)
         u, s = res.u, trial
         stats["iterations"] += res.iterations
         stats["steps"] += 1
         stats["all_stable"] &= bool(res.stable) if res.stable is not None else False
+        if not res.stable:
+            stats["unstable_at"].append((s, res.n_negative))
         stats["s"] = s
         if callback:
             callback(s, res)
@@ -147,6 +155,9 @@ def _disk_rows(cfg):
         Row(f"{tag}: non-finite positions at any step", float(not all(finite)), 0.0, 0.0, n, wall),
         Row(f"{tag}: Newton iterations (all steps)", st["iterations"], None, None, n, wall),
         Row(f"{tag}: step cuts", st["cuts"], None, None, n, wall),
+        Row(f"{tag}: accepted states that are not stable minima (first at s = "
+            f"{st['unstable_at'][0][0] if st['unstable_at'] else float('nan'):.4g})", len(st["unstable_at"]), None,
+            None, n, wall),
         Row(f"{tag}: out-of-plane extent max z - min z", float(np.ptp(x[:, 2])), None, None, n, wall),
         Row(f"{tag}: waves around the rim", _rim_waves(x, mesh.topology.boundary_vertex_groups["outer"]), None, None,
             n, wall),
