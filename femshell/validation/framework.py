@@ -23,6 +23,7 @@ CASES = {
     "linear-buckling-plates": "linear_buckling_plates",
     "clamped-plate-growth-buckling": "clamped_plate_growth_buckling",
     "euler-strip": "euler_strip",
+    "shallow-arch-snap": "shallow_arch_snap",
     "laplace-beltrami-sphere": "laplace_beltrami_sphere",
     "curvature": "curvature",
     "thin-shell-locking": "thin_shell_locking",
