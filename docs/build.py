@@ -5,8 +5,9 @@
    results in ``validation/results/*.json`` (``femshell validate NAME --level full
    --out validation/results``): one table per case with every row;
 2. the API reference from the docstrings, as HTML, with pdoc;
-3. the markdown pages (theory, tutorials, report, accuracy and cost) copied beside it,
-   with an index.
+3. the markdown pages (theory, report, accuracy and cost) copied beside it, and the
+   tutorials (``docs/tutorials/NAME.md`` with their runnable scripts ``NAME.py`` and
+   images) into ``tutorials/``, with an index.
 """
 
 from __future__ import annotations
@@ -18,8 +19,9 @@ from pathlib import Path
 
 DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
-PAGES = ["theory.md", "tutorial-buckling.md", "tutorial-mechanochemistry.md", "tutorial-convergence.md",
-         "validation-report.md", "accuracy-and-cost.md"]
+PAGES = ["theory.md", "validation-report.md", "accuracy-and-cost.md"]
+#: tutorials, in reading order: docs/tutorials/NAME.md (the page) and NAME.py (its script)
+TUTORIALS = ["buckling", "mechanochemistry", "convergence"]
 
 
 def _fmt(v, spec=".4g"):
@@ -66,7 +68,24 @@ def build(out: Path) -> Path:
         src = DOCS / page
         if src.exists() and page != "validation-report.md":
             shutil.copy(src, out / page)
+        if (out / page).exists():         # the report was written above, from validation/results
             index.append(f"- [{page[:-3].replace('-', ' ')}]({page})")
+    tut = DOCS / "tutorials"
+    titles = []
+    for name in TUTORIALS:
+        page = tut / f"{name}.md"
+        if page.exists():
+            (out / "tutorials").mkdir(exist_ok=True)
+            for src in (page, tut / f"{name}.py"):
+                if src.exists():
+                    shutil.copy(src, out / "tutorials" / src.name)
+            title = page.read_text(encoding="utf-8").splitlines()[0].lstrip("# ").strip() or name
+            titles.append(f"  - [{title}](tutorials/{name}.md) (script: [{name}.py](tutorials/{name}.py))")
+    if titles:
+        index += ["- tutorials (each page has a script that runs it: `python docs/tutorials/NAME.py --quick`)"]
+        index += titles
+    if (tut / "images").exists():
+        shutil.copytree(tut / "images", out / "tutorials" / "images", dirs_exist_ok=True)
     if (DOCS / "images").exists():
         shutil.copytree(DOCS / "images", out / "images", dirs_exist_ok=True)
     (out / "index.md").write_text("\n".join(index) + "\n")

@@ -19,3 +19,7 @@ def test_docs_build(tmp_path):
         assert (api / f"{module}.html").exists() or (api / module).is_dir(), module
     assert (tmp_path / "theory.md").exists()
     assert (tmp_path / "validation-report.md").read_text().startswith("# Validation report")
+    index = (tmp_path / "index.md").read_text()
+    for name in ("buckling", "mechanochemistry", "convergence"):     # the tutorials, page and script
+        assert (tmp_path / "tutorials" / f"{name}.md").exists() and (tmp_path / "tutorials" / f"{name}.py").exists()
+        assert f"tutorials/{name}.md" in index
