@@ -28,7 +28,10 @@ took 0.15-1.7 s; one run each, ``--mkl-threads 1``), setup + solve in seconds:
 | 49 963 | 0.38 / 3.8 / 38 | 6.9 / 6.2 / 9.2 (5-9) | 2.8 / 3.3 / 7.1 (20-56) | 4.1 / 4.2 / 3.3 | **2.2 / 1.4 / 1.7** |
 | 99 922 | 0.77 / 7.7 / 77 | 7.5 / 20 / 12 (6-10) | **0.88** / 6.1 / 6.8 (27-79) | 9.0 / 9.1 / 9.1 | 2.5 / **3.6 / 2.9** |
 
-(dt = 0.1 / 1 / 10 with D = beta = 1, R = 30.) Conclusions that survived the noise:
+(dt = 0.1 / 1 / 10 with D = beta = 1, R = 30.) Re-measured 2026-11-23 at dt = 1 (load 2.7-5.6,
+``--repeat 3``), setup + solve: 2 505: pyamg 0.12, Jacobi-CG 0.002, splu 0.047, PARDISO 0.036;
+25 007: pyamg 2.75, Jacobi-CG 0.44 (31 its), splu 1.32, PARDISO 0.58; 99 922: pyamg 5.0,
+Jacobi-CG 2.7 (59 its), splu 13.4, PARDISO 3.5. Conclusions that survived the noise:
 pyamg smoothed aggregation is never the fastest here: A is mass-dominated, CG needs only
 2-10 iterations, and the hierarchy setup (which a moving surface pays every step) costs
 more than a whole direct solve. Below ~10k vertices anything is fast (Jacobi-CG or splu,
