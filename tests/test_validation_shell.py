@@ -9,7 +9,7 @@ import pytest
 from femshell.validation import run_case
 
 SHELL_CASES = ["patch-tests", "clamped-plate-pressure", "cantilever-end-shear", "cantilever-end-moment",
-               "scordelis-lo", "pinched-cylinder", "shallow-arch-snap"]
+               "scordelis-lo", "pinched-cylinder", "shallow-arch-snap", "disk-wrinkles"]
 
 
 @pytest.mark.parametrize("name", SHELL_CASES)

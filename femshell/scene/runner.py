@@ -856,7 +856,8 @@ class ContinuationRunner(BaseRunner):
             from ..analysis import count_wrinkles
             r = min(self.r2, 0.98 * float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max()))
             try:
-                out["wrinkles"] = count_wrinkles(self.mesh.points, w, r, min_mode=1, rel_tol=0.05)
+                out["wrinkles"] = count_wrinkles(self.mesh.points, w, r, triangles=self.mesh.triangles, min_mode=1,
+                                                rel_tol=0.05)
             except ValueError:
                 out["wrinkles"] = -1
         return out

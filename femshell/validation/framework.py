@@ -24,6 +24,7 @@ CASES = {
     "clamped-plate-growth-buckling": "clamped_plate_growth_buckling",
     "euler-strip": "euler_strip",
     "shallow-arch-snap": "shallow_arch_snap",
+    "disk-wrinkles": "disk_wrinkles",
     "laplace-beltrami-sphere": "laplace_beltrami_sphere",
     "curvature": "curvature",
     "thin-shell-locking": "thin_shell_locking",

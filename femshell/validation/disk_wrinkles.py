@@ -1,0 +1,516 @@
+r"""The seed paper's disk test: wrinkles of a growing inner circle, by continuation and branch switching.
+
+design.md 1.6 (Zakharov & Dasbiswas, section 4): a free flat disk of radius R1 and thickness h
+(E = 1, ν = 0.5) whose inner circle r < R2 grows isotropically by the linear stretch
+s = 1 + ε: target metric (1 + ε)² ā₀ there, target thickness h/(1 + ε)² (volume conserving),
+nothing changes outside. The paper's contractility ratio Λmax/Λmin = 1.5 is ε = 0.5. We follow
+the equilibria from ε = 0 to ε = 0.5 and count the azimuthal wrinkles of the stable state there.
+
+Physics
+-------
+While it stays flat, the grown inclusion is a disk of natural radius (1 + ε) R2 pushed into a
+hole of radius R2: a Lamé problem, uniform equibiaxial compression inside, radial compression
+and hoop tension outside. The flat state loses stability when that compression reaches the
+bending stiffness of the (thinned) inclusion, at a critical ε_c ~ (h/R2)² (the clamped-plate
+scaling ε_c = k² h²/(12 (1 + ν) R2²) with a softer, elastic rim). Beyond ε_c the inclusion
+buckles out of plane. A dome cannot take up the excess length of circles near the rim of the
+inclusion (a circle at geodesic distance ρ on a cap of radius R has length 2πR sin(ρ/R) < 2πρ),
+so a domed inclusion carries hoop compression near its rim; if the rim is thin enough for that
+compression, it wrinkles into n waves (a "lettuce-leaf" edge), with n growing with R2/h. The
+paper (a spring network) reports, at ε = 0.5 and h = 2: axisymmetric below R2 ≈ 1.95, then 2
+wrinkles, 3 from R2 ≈ 2.9, 4 from R2 ≈ 3.9; and 8 wrinkles at h = 0.25, R2 = 3.
+
+Procedure (per case h, R2)
+--------------------------
+Mesh: :func:`femshell.linear_buckling._disk_mesh` (gmsh, the circle r = R2 in the mesh edges,
+edge R2/``resolution`` inside, coarser outwards), R1 = max(20, 5 R2) (issue #4 asks R1 ≥ 5 R2;
+20 keeps the free edge ≥ 10 h away for h = 2), rigid motions removed by six pinned position
+components (:class:`~femshell.shell.ShellModel` does this for a shell without supports).
+
+1. **Flat branch**: pseudo-arclength continuation in ε
+   (:class:`~femshell.solvers.continuation.GrowthParameter`) with the inertia of the constrained
+   Hessian (LDLᵀ, Sylvester) at every accepted point, stopped at the first point with a negative
+   eigenvalue; the loss of stability is then bisected on the inertia alone
+   (:func:`loss_of_stability`: one factorisation per trial ε, whatever the number of eigenvalues
+   that cross at once). Its ε, the number of negative eigenvalues just past it (the multiplicity)
+   and the azimuthal wavenumber n of the critical mode (Fourier analysis of its out-of-plane part,
+   best-fit plane removed, on circles near R2) are reported.
+2. **Branch switching** (:func:`~femshell.solvers.continuation.switch_branch`) along the first
+   critical mode; the new branch is followed to ε = 0.5 with the same inertia check. If it loses
+   stability on the way (a point with a negative eigenvalue after stable ones), that point is
+   bisected the same way and the continuation switches again, onto the branch born there (at most
+   ``MAX_SWITCHES`` times). So a secondary bifurcation to an azimuthal mode on the dome branch is
+   seen whatever its n.
+3. **Final state**: if the last branch reaches ε = 0.5 unstable (or stops early), the state is
+   relaxed to a stable equilibrium at ε = 0.5 by Newton with saddle escape
+   (:func:`~femshell.solvers.newton.minimize`, ``stable=True``), after stepping ε to 0.5 if
+   needed; this is recorded ("relaxed"). Its stability is then checked independently: the
+   number of negative eigenvalues of the constrained Hessian there must be 0.
+4. **Count**: the deflection w (best-fit plane a + bX + cY removed: the pins let a free disk
+   tilt) on the material circle r = ``COUNT_RADIUS`` · R2 just outside the grown region,
+   :func:`femshell.analysis.count_wrinkles` (dominant Fourier mode k ≥ 2 of w(φ); 0 when the
+   non-axisymmetric part is below ``REL_TOL`` of the amplitude: a dome, possibly shifted or
+   tilted, k = 1, is not a wrinkle).
+
+Rows: per case the count at ε = 0.5 (the paper's count in the quantity text; no reference,
+no tolerance: the paper is a spring network and our continuum numbers need not agree), the
+first bifurcation ε and n, the number of branch switches, whether the final state had to be
+relaxed, and the number of negative eigenvalues at the final state (tolerance 0: every
+accepted state must be stable). Across cases: the counts at h = 2 must not decrease with R2,
+and the count at h = 0.25, R2 = 3 must not be smaller than at h = 2, R2 = 3 (full level);
+the smallest R2 of the grid where the count reaches 2, 3, 4 is reported beside the paper's
+1.95, 2.9, 3.9.
+
+Limit of the material law (why some cases have no stable state)
+---------------------------------------------------------------
+The membrane energy of design.md 1.2 is St Venant–Kirchhoff in the metric. Under equibiaxial
+compression it loses ellipticity (to in-plane shear waves of every wavelength) when the stretch
+current/target falls below √((α + β)/(α + 2β)) = √(3/4) = 0.866 for ν = 0.5
+(:func:`svk_ellipticity_stretch`). A confined inclusion that cannot buckle out of plane before that
+(thick and small; measured at resolution 8: h = 2, R2 ≤ 1.5) then loses stability in many
+mesh-scale modes at once, and continuation and stable Newton find no stable state at ε = 0.5.
+The row "smallest stretch current/target" at the first bifurcation shows which case is which.
+Those cases fail their stability row, and their count is not used in the monotonicity check
+(it is the count of an unconverged state).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..analysis import azimuthal_spectrum, count_wrinkles
+from ..linear_buckling import _disk_mesh
+from ..mesh.surface import SurfaceMesh
+from ..shell import Material, RestState, ShellModel
+from ..shell.rest_state import metric
+from ..solvers.continuation import ContinuationError, GrowthParameter, continuation, switch_branch
+from ..solvers.linear import factorize
+from ..solvers.newton import NewtonError, minimize
+from .framework import Row, timed
+
+NAME = "disk-wrinkles"
+DESCRIPTION = ("free disk, inner circle r < R2 grows by eps = 0 -> 0.5 (thinner h/(1+eps)^2), nu = 0.5: "
+               "continuation, branch switching, wrinkle count of the stable state at eps = 0.5 vs the paper")
+SOURCE = ("Zakharov & Dasbiswas, Mechanochemical induction of wrinkling morphogenesis on elastic shells, "
+          "section 4 (spring network): h = 2: 2 wrinkles from R2 ~ 1.95, 3 from 2.9, 4 from 3.9; h = 0.25, "
+          "R2 = 3: 8 wrinkles (design.md 1.6). Reported beside ours, no tolerance; pass criteria: counts "
+          "non-decreasing in R2 and in 1/h, every final state stable")
+
+EPS_END = 0.5          # the paper's Λmax/Λmin − 1
+NU = 0.5
+#: (h, R2) cases and the mesh resolution (edges per R2 along the grown circle) of each level
+LEVELS = {
+    "quick": {"cases": [(2.0, 3.0), (2.0, 4.0)], "resolution": 5},
+    "full": {"cases": [(2.0, r) for r in (1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5)] + [(0.25, 3.0)],
+             "resolution": 8},
+}
+#: the paper's R2 where the count at h = 2 becomes 2, 3, 4, and its count at h = 0.25, R2 = 3
+PAPER_CHANGES = {2: 1.95, 3: 2.9, 4: 3.9}
+PAPER_THIN = (0.25, 3.0, 8)
+#: the counting circle (material radius / R2) and the non-axisymmetric threshold
+COUNT_RADIUS = 1.15
+REL_TOL = 0.05
+#: branch switches after the first one (secondary bifurcations) at most
+MAX_SWITCHES = 4
+#: continuation settings: first step and largest step in the weighted arclength, steps per branch
+DS, DS_MAX, MAX_STEPS = 0.4, 0.5, 80
+#: distance of the first point of a switched branch from its branch point (weighted norm)
+SWITCH_AMPLITUDE = 0.05
+
+_LAST = {}   # per-case results of the last run(), for plot()
+
+
+def paper_count(h, R2):
+    """The paper's wrinkle count at ε = 0.5, or None where it gives none (design.md 1.6)."""
+    if h == PAPER_THIN[0] and R2 == PAPER_THIN[1]:
+        return PAPER_THIN[2]
+    if h != 2.0:
+        return None
+    n = 0
+    for k, r in PAPER_CHANGES.items():
+        if R2 >= r:
+            n = k
+    return n
+
+
+def outer_radius(R2):
+    """R1 = max(20, 5 R2): the free edge ≥ 5 R2 and ≥ 10 h (h = 2) away from the grown region."""
+    return max(20.0, 5.0 * R2)
+
+
+def eps_scale(h, R2):
+    """A scale of the critical growth strain for the arclength norm (not a result): a third of the
+    clamped-plate value k² h²/(12 (1 + ν) R2²), k² = 14.68 (the elastic rim is softer than a clamp),
+    at most EPS_END/5 (steps of at most ~0.1 in ε: crossings come one at a time, each located cheaply)."""
+    return min(14.682 * h * h / (12.0 * (1.0 + NU) * R2 * R2) / 3.0, EPS_END / 5.0)
+
+
+def svk_ellipticity_stretch(nu=NU):
+    r"""Principal stretch (current/target) below which the St Venant–Kirchhoff membrane law loses ellipticity
+    under equibiaxial compression.
+
+    With M = ā⁻¹a − I and W = (α/2)(tr M)² + β tr M² (design.md 1.2), the state a = λ² ā perturbed
+    by the deformation gradient λ(I + G) of a plane wave, G = a⊗n, has the second variation
+    W₂ = 2αλ⁴(a·n)² + βλ⁴|G + Gᵀ|² + 2(α + β)(λ² − 1)λ²|a|². For a shear wave (a ⊥ n,
+    |G + Gᵀ|² = 2|a|²) it vanishes at λ² = (α + β)/(α + 2β), i.e. √(3/4) = 0.866 for ν = 0.5.
+    Below it a compressed membrane is unstable at every wavelength, the shortest (the mesh size)
+    first: a material instability of the SVK law, not a buckling of the shell.
+    """
+    alpha, beta = nu / (1.0 - nu * nu), 1.0 / (2.0 * (1.0 + nu))
+    return math.sqrt((alpha + beta) / (alpha + 2.0 * beta))
+
+
+class Disk:
+    """The disk model of one case: mesh, ShellModel, the ε-parametrised rest state, the problem.
+
+    ``rest_of(eps)``: target metric (1 + ε)² ā₀ and thickness h/(1 + ε)² for elements whose
+    centroid is inside r < R2, ā₀ and h outside; flat target curvature.
+    """
+
+    def __init__(self, h, R2, resolution, R1=None):
+        self.h, self.R2 = float(h), float(R2)
+        self.R1 = outer_radius(R2) if R1 is None else float(R1)
+        p2, tri = _disk_mesh(self.R1, self.R2, resolution)
+        self.points = np.column_stack([p2, np.zeros(len(p2))])
+        self.triangles = tri
+        self.mesh = SurfaceMesh(self.points, tri)
+        self.a0 = metric(self.points, tri)
+        c = self.points[tri].mean(axis=1)
+        self.inside = np.hypot(c[:, 0], c[:, 1]) < self.R2
+        self.model = ShellModel(self.mesh, Material(1.0, NU), self.rest_of(0.0))
+        self.problem = GrowthParameter(self.model, self.rest_of, parameter_scale=eps_scale(h, R2),
+                                       length_scale=self.h)
+        self._plane = np.column_stack([np.ones(len(p2)), p2])
+
+    @property
+    def n_vertices(self):
+        return self.mesh.n_vertices
+
+    def rest_of(self, eps):
+        s2 = np.where(self.inside, (1.0 + eps) ** 2, 1.0)
+        thick = np.where(self.inside, self.h / (1.0 + eps) ** 2, self.h)
+        return RestState(self.a0 * s2[:, None, None], np.zeros_like(self.a0), thick)
+
+    def deflection(self, u):
+        """w: the z of the deformed vertices minus their best-fit plane a + b X + c Y (X, Y reference)."""
+        z = self.model.positions(u)[:, 2]
+        coef, *_ = np.linalg.lstsq(self._plane, z, rcond=None)
+        return z - self._plane @ coef
+
+    def count(self, w):
+        """Wrinkles of w on the material circle r = COUNT_RADIUS · R2 (0: axisymmetric or flat)."""
+        return count_wrinkles(self.points, w, COUNT_RADIUS * self.R2, triangles=self.triangles, min_mode=2,
+                              rel_tol=REL_TOL)
+
+    def spectrum(self, w, k_max=16):
+        """|ŵ_k|, k = 0..k_max, on the counting circle."""
+        return azimuthal_spectrum(self.points, w, COUNT_RADIUS * self.R2, triangles=self.triangles)[: k_max + 1]
+
+    def min_stretch(self, u):
+        """Smallest principal stretch √eig(ā⁻¹a) (current over target) of the grown elements."""
+        a, _ = self.model.fundamental_forms(u)
+        m = np.einsum("eij,ejk->eik", self.model.rest.metric_inverse, a)[self.inside]
+        tr, det = m[:, 0, 0] + m[:, 1, 1], m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
+        return float(np.sqrt(np.min(0.5 * tr - np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0)))))
+
+    def record(self, u):
+        w = self.deflection(u)
+        return {"w_max": float(np.abs(w).max()), "wrinkles": self.count(w)}
+
+    def mode_wavenumber(self, modes):
+        """Dominant azimuthal wavenumber of the out-of-plane part of critical mode(s) (best-fit plane
+        removed), summed power on circles r = (0.5, 0.85, 1.15, 1.5) R2."""
+        n = self.n_vertices
+        power = 0.0
+        for v in np.atleast_2d(np.asarray(modes).T):
+            q = np.zeros(self.model.n_total)
+            q[self.model.free] = v
+            z = q[: 3 * n].reshape(-1, 3)[:, 2]
+            z = z - self._plane @ np.linalg.lstsq(self._plane, z, rcond=None)[0]    # a rigid tilt is no wave
+            for f in (0.5, 0.85, 1.15, 1.5):
+                power = power + azimuthal_spectrum(self.points, z, f * self.R2, triangles=self.triangles)[:25] ** 2
+        return int(np.argmax(power))
+
+    def n_negative(self, u, eps):
+        """Negative eigenvalues of the constrained Hessian at (u, ε) (inertia of its LDLᵀ)."""
+        self.problem.set_parameter(eps)
+        fac = factorize(self.model.hessian(u), kind="symmetric_indefinite")
+        try:
+            return int(fac.inertia[1])
+        finally:
+            fac.free()
+
+
+def _quiet(*a, **k):
+    return None
+
+
+#: relative width (in ε) to which a loss of stability is bisected
+LOCATE_RTOL = 1e-4
+#: at most this many critical modes are computed at a loss of stability
+MAX_MODES = 6
+
+
+def _stop_on_loss(branch, row):
+    """continuation callback: stop at the first point with a negative eigenvalue after a stable one."""
+    rows = [r for r in branch.rows if not r["special"]]
+    return row["n_negative"] > 0 and any(r["n_negative"] == 0 for r in rows[:-1])
+
+
+def _follow_branch(d, start=None, log=None, **opts):
+    """Follow a branch to ε = 0.5 with stability from the inertia of every accepted point; stop where it
+    loses stability (the flat branch from ε = 0 when ``start`` is None, else the branch born at the
+    SpecialPoint ``start``). No special-point location by the continuation itself (``detect=False``):
+    see :func:`loss_of_stability`."""
+    common = dict(lam_stop=EPS_END, max_steps=MAX_STEPS, n_eigs=0, detect=False, record=d.record,
+                  callback=_stop_on_loss, log=log)
+    common.update(opts)
+    if start is None:
+        return continuation(d.problem, d.model.initial_unknowns(), 0.0, ds=DS, ds_max=DS_MAX, label="flat",
+                            **common)
+    return switch_branch(d.problem, start, amplitude=SWITCH_AMPLITUDE, ds=SWITCH_AMPLITUDE,
+                         parameter_scale=EPS_END / 5.0, **common)
+
+
+def loss_of_stability(d, branch):
+    """Where a branch stopped by :func:`_stop_on_loss` loses stability, bisected on the inertia alone.
+
+    Between the last stable and the first unstable accepted point, ε is bisected to ``LOCATE_RTOL``
+    with Newton at fixed ε (from the stable side) and one LDLᵀ per trial point. This costs the same
+    however many eigenvalues cross in one step, whereas locating each crossing eigenvalue needs all of
+    them (the thick disk, h = 2 at R2 = 1, loses stability in ~30 modes at once). The critical modes
+    are the eigenvectors of the negative eigenvalues just past the crossing (at most ``MAX_MODES``);
+    ``multiplicity`` is the number of negative eigenvalues there. Returns a SpecialPoint (kind
+    "branch", usable by :func:`~femshell.solvers.continuation.switch_branch`) or None when the branch
+    did not lose stability.
+    """
+    import scipy.sparse.linalg as spla
+
+    from ..solvers.continuation import SpecialPoint
+
+    prob = d.problem
+    rows = [r for r in branch.rows if not r["special"]]
+    if branch.status != "callback" or rows[-1]["n_negative"] == 0:
+        return None
+    (ua, ea), (ub, eb) = branch.states[-2], branch.states[-1]
+    nb = rows[-1]["n_negative"]
+
+    def state(eps):
+        prob.set_parameter(eps)
+        for u0 in (ua, ub):
+            try:
+                u = minimize(prob, u0, stable=False, max_iter=40, log=None).u
+                break
+            except NewtonError:
+                continue
+        else:
+            return None, None
+        fac = factorize(d.model.hessian(u), kind="symmetric_indefinite")
+        try:
+            return u, int(fac.inertia[1])
+        finally:
+            fac.free()
+
+    while abs(eb - ea) > LOCATE_RTOL * abs(eb):
+        em = 0.5 * (ea + eb)
+        um, nm = state(em)
+        if um is None:
+            break
+        if nm == 0:
+            ua, ea = um, em
+        else:
+            ub, eb, nb = um, em, nm
+    prob.set_parameter(eb)
+    K = d.model.hessian(ub)
+    k = max(1, min(nb, MAX_MODES))
+    vals, vecs = spla.eigsh(K, k=k, sigma=0.0, which="LM", v0=np.random.default_rng(0).standard_normal(K.shape[0]))
+    order = np.argsort(vals)
+    tu, tl = ub - ua, eb - ea
+    w = prob.dof_weights()
+    norm = math.sqrt(float(tu @ (w * tu)) / len(tu) + (tl / prob.parameter_scale) ** 2)
+    return SpecialPoint(kind="branch", parameter=0.5 * (ea + eb), s=float("nan"), u=0.5 * (ua + ub),
+                        tangent=(tu / norm, tl / norm), eigenvalues=vals[order], modes=vecs[:, order],
+                        multiplicity=int(nb), n_negative_before=0, n_negative_after=int(nb), step=len(rows) - 1,
+                        bracket=(ea, eb), weights=w, parameter_scale=prob.parameter_scale)
+
+
+def follow(h, R2, resolution, log=None, verbose=False):
+    """Flat branch, branch switching, secondary switches, stable state at ε = 0.5 (module docstring).
+
+    ``verbose``: also pass ``log`` to the continuation (one line per step).
+    Returns a dict: disk, branches (list of Branch), switch_points (SpecialPoint list), first
+    (the first loss of stability of the flat state or None), n_first, u, w, count, spectrum, relaxed,
+    n_negative_final, energy, wall_s.
+    """
+    t0 = time.perf_counter()
+    log = log or _quiet
+    clog = log if verbose else None
+    d = Disk(h, R2, resolution)
+    prob = d.problem
+    branch = _follow_branch(d, None, log=clog)
+    branches, switches = [branch], []
+    first = sp = loss_of_stability(d, branch)
+    n_first = d.mode_wavenumber(first.modes) if first is not None else None
+    stretch_first = None
+    if first is not None:
+        prob.set_parameter(first.parameter)
+        stretch_first = d.min_stretch(first.u)
+    log(f"  h={h:g} R2={R2:g}: {d.n_vertices} vertices; flat branch: "
+        + (f"first instability at eps = {first.parameter:.5g}, {first.multiplicity} negative eigenvalue(s) "
+           f"past it, n = {n_first}, smallest stretch/target {stretch_first:.4f} (SVK limit "
+           f"{svk_ellipticity_stretch():.4f})" if first else f"stable up to eps = {EPS_END}")
+        + f" ({time.perf_counter() - t0:.0f} s)")
+    u, eps = branch.last
+    end_stable = branch.status == "lam_stop" and [r for r in branch.rows if not r["special"]][-1]["n_negative"] == 0
+    failed = None
+    while sp is not None and len(switches) <= MAX_SWITCHES:
+        switches.append(sp)
+        try:
+            branch = _follow_branch(d, sp, log=clog, label=f"switch {len(switches)}")
+        except ContinuationError as exc:
+            # no branch could be started along the mode: relax from the branch point pushed along it
+            failed = f"branch switching at eps = {sp.parameter:.5g} failed ({exc})"
+            log("    " + failed)
+            phi = sp.modes[:, 0]
+            u = sp.u + SWITCH_AMPLITUDE * d.h * phi / np.abs(phi[: 3 * d.n_vertices]).max()
+            eps, end_stable = sp.parameter, False
+            break
+        branches.append(branch)
+        rows = [r for r in branch.rows if not r["special"]]
+        u, eps = branch.last
+        end_stable = branch.status == "lam_stop" and rows[-1]["n_negative"] == 0
+        sp = loss_of_stability(d, branch)
+        log(f"    {branch.label} at eps = {switches[-1].parameter:.5g}: {branch.status}, {len(rows)} points, "
+            f"eps end {rows[-1]['parameter']:.4g}, negative eigenvalues {rows[-1]['n_negative']}, wrinkles "
+            f"{rows[-1]['wrinkles']}" + (f"; loses stability at eps = {sp.parameter:.5g} ({sp.multiplicity} "
+                                         f"mode(s), n = {d.mode_wavenumber(sp.modes)})" if sp else "")
+            + f" ({time.perf_counter() - t0:.0f} s)")
+    relaxed = False
+    if not (abs(eps - EPS_END) < 1e-12 and end_stable):
+        relaxed = True
+        for e in np.linspace(eps, EPS_END, max(2, int(math.ceil(abs(EPS_END - eps) / 0.05)) + 1))[1:]:
+            prob.set_parameter(float(e))
+            try:
+                u = minimize(prob, u, stable=True, max_iter=200, log=None).u
+            except NewtonError as exc:      # keep the last iterate: the stability row reports it
+                log(f"    stable Newton failed at eps = {e:.4g}: {exc}")
+                u = exc.result.u if getattr(exc, "result", None) is not None else u
+        log(f"    relaxed by stable Newton from eps = {eps:.4g} to {EPS_END}")
+    n_neg = d.n_negative(u, EPS_END)
+    w = d.deflection(u)
+    out = dict(disk=d, branches=branches, switch_points=switches, first=first, n_first=n_first, u=u, failed=failed,
+               stretch_first=stretch_first,
+               w=w, count=d.count(w), spectrum=d.spectrum(w), relaxed=relaxed, n_negative_final=n_neg,
+               energy=float(d.model.energy(u)), wall_s=time.perf_counter() - t0)
+    log(f"    eps = {EPS_END}: {out['count']} wrinkles, {n_neg} negative eigenvalues, energy {out['energy']:.8g}, "
+        f"{out['wall_s']:.0f} s")
+    return out
+
+
+def warm_up():
+    """Compile the element kernels and load the linear solver before anything is timed."""
+    d = Disk(2.0, 4.5, 3)
+    u = d.model.initial_unknowns()
+    d.model.energy(u)
+    d.model.gradient(u)
+    factorize(d.model.hessian(u), kind="symmetric_indefinite").free()
+
+
+def run(level, log=None):
+    warm_up()
+    cfg = LEVELS[level]
+    res = cfg["resolution"]
+    rows, results = [], []
+    for h, R2 in cfg["cases"]:
+        with timed() as t:
+            r = follow(h, R2, res, log=log)
+        results.append((h, R2, r))
+        nv = r["disk"].n_vertices
+        at = f" @ h={h:g} R2={R2:g}"
+        pc = paper_count(h, R2)
+        ptxt = "" if pc is None else f" (paper: {pc})"
+        first = r["first"]
+        bad = "" if r["n_negative_final"] == 0 else ", final state NOT stable: not a result"
+        rows.append(Row(f"wrinkles at eps=0.5{ptxt}{bad}" + at, r["count"], None, None, nv, t()))
+        rows.append(Row("first bifurcation eps of the flat state" + at,
+                        first.parameter if first else math.nan, None, None, nv, t()))
+        rows.append(Row("first bifurcation azimuthal n (multiplicity "
+                        f"{first.multiplicity if first else '-'})" + at,
+                        r["n_first"] if first else math.nan, None, None, nv, t()))
+        rows.append(Row(f"smallest stretch current/target in r<R2 at the first bifurcation (SVK membrane loses "
+                        f"ellipticity below {svk_ellipticity_stretch():.4f})" + at,
+                        r["stretch_first"] if first else math.nan, None, None, nv, t()))
+        rows.append(Row("branch switches (1 = the first bifurcation only)" + at, len(r["switch_points"]),
+                        None, None, nv, t()))
+        rows.append(Row("final state relaxed by stable Newton (1) or reached on a branch (0)" + at,
+                        float(r["relaxed"]), None, None, nv, t()))
+        rows.append(Row("negative eigenvalues of the constrained Hessian at eps=0.5" + at,
+                        r["n_negative_final"], 0.0, 0.0, nv, t()))
+    _LAST["results"] = results
+    _LAST["level"] = level
+    # only stable final states have a wrinkle count (the unstable ones fail their stability row)
+    ok = [(h, R2, r) for h, R2, r in results if r["n_negative_final"] == 0]
+    thick = sorted([(R2, r["count"]) for h, R2, r in ok if h == 2.0])
+    counts = [c for _, c in thick]
+    if len(counts) >= 2:
+        mono = all(b >= a for a, b in zip(counts, counts[1:]))
+        listing = ", ".join(f"{R2:g}:{c}" for R2, c in thick)
+        rows.append(Row(f"counts of the stable states at h=2 non-decreasing with R2 ({listing})", float(mono),
+                        1.0, 0.0))
+    thin = [r["count"] for h, R2, r in ok if (h, R2) == PAPER_THIN[:2]]
+    ref = [r["count"] for h, R2, r in ok if (h, R2) == (2.0, PAPER_THIN[1])]
+    if thin and ref:
+        rows.append(Row(f"count(h=0.25, R2=3) = {thin[0]} >= count(h=2, R2=3) = {ref[0]}", float(thin[0] >= ref[0]),
+                        1.0, 0.0))
+    if len(thick) >= 3:
+        for k, r2p in PAPER_CHANGES.items():
+            hit = [R2 for R2, c in thick if c >= k]
+            rows.append(Row(f"smallest R2 of the grid with a stable state of >= {k} wrinkles at h=2 (paper: {r2p})",
+                            hit[0] if hit else math.nan))
+    return rows
+
+
+def plot(rows, fig):
+    """Counts against R2 (ours, the paper's steps) and top views of w at ε = 0.5 for up to three cases."""
+    results = _LAST.get("results", [])
+    gs = fig.add_gridspec(1, 4, width_ratios=[1.3, 1, 1, 1])
+    ax = fig.add_subplot(gs[0, 0])
+    r2 = np.linspace(0.8, 4.8, 400)
+    ax.step(r2, [paper_count(2.0, x) for x in r2], where="post", color="k", lw=1, label="paper h=2")
+    ax.plot([PAPER_THIN[1]], [PAPER_THIN[2]], "k*", ms=9, label="paper h=0.25")
+    for h, mk, col in ((2.0, "o", "tab:blue"), (0.25, "s", "tab:red")):
+        pts = sorted((R2, r["count"]) for hh, R2, r in results if hh == h and r["n_negative_final"] == 0)
+        bad = sorted((R2, r["count"]) for hh, R2, r in results if hh == h and r["n_negative_final"] != 0)
+        if pts:
+            ax.plot(*zip(*pts), mk + "-" if len(pts) > 1 else mk, color=col, label=f"femshell h={h:g}")
+        if bad:
+            ax.plot(*zip(*bad), "x", color=col, ms=8, label=f"h={h:g}: no stable state found")
+    ax.set_xlabel("R2")
+    ax.set_ylabel("wrinkles at eps = 0.5")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=6)
+    pick = results if len(results) <= 3 else [results[i] for i in (0, len(results) // 2, len(results) - 1)]
+    thin = [x for x in results if x[0] != 2.0]
+    if thin and len(results) > 3:
+        pick = [results[len(results) // 3], results[len(results) - 2], thin[0]]
+    for j, (h, R2, r) in enumerate(pick[:3]):
+        a = fig.add_subplot(gs[0, j + 1])
+        d = r["disk"]
+        x = d.model.positions(r["u"])
+        lim = 2.2 * R2
+        w = r["w"]
+        vmax = float(np.abs(w).max()) or 1.0
+        tpc = a.tripcolor(x[:, 0], x[:, 1], d.triangles, w, shading="gouraud", cmap="RdBu_r",
+                          vmin=-vmax, vmax=vmax)
+        a.add_patch(__import__("matplotlib.patches", fromlist=["Circle"]).Circle(
+            (0, 0), COUNT_RADIUS * R2, fill=False, ls="--", lw=0.6, color="k"))
+        a.set_xlim(-lim, lim)
+        a.set_ylim(-lim, lim)
+        a.set_aspect("equal")
+        a.set_xticks([])
+        a.set_yticks([])
+        a.set_title(f"h={h:g} R2={R2:g}: {r['count']} wrinkles", fontsize=7)
+        fig.colorbar(tpc, ax=a, fraction=0.046, pad=0.02).ax.tick_params(labelsize=5)
