@@ -29,7 +29,7 @@ vertex (dc/dt = P(H) − βc with H from the shell: a check of the loop, not of 
 
 Levels: ``quick`` (CI, about two minutes) runs ``decay`` on a sphere R = 15 of ~1 500 vertices to
 t = 15 (it ends stationary, so the fixed-point row is exercised) and ``spots`` on ~800 vertices to
-t = 0.5; these meshes are coarser than the paper's (mean edge 1.5 and 2.0 against 0.72), so their outcomes
+t = 0.25; these meshes are coarser than the paper's (mean edge 1.5 and 2.0 against 0.72), so their outcomes
 say nothing about the paper's (see "Resolution" below). ``full`` runs all nine at the paper's
 resolution (25 000 vertices on R = 30, the same edge length on R = 15) to t = 100 or
 stationarity. A full run takes 10–12 h per scenario on two cores
@@ -102,7 +102,7 @@ SCENARIOS = {s.name: s for s in (
 #: per level: scenario -> (end time, vertices; None: the paper's edge length) and the sphere
 #: radius of the quick level (None: the scenario's)
 LEVELS = {
-    "quick": {"runs": {"decay": (15.0, 1500), "spots": (0.5, 800)}, "radius": 15.0},
+    "quick": {"runs": {"decay": (15.0, 1500), "spots": (0.25, 800)}, "radius": 15.0},
     "full": {"runs": {name: (100.0, None) for name in SCENARIOS}, "radius": None},
 }
 #: fixed-point tolerance of a stationary D = 0 end, relative to c_max (stationarity is declared at
