@@ -125,8 +125,9 @@ def model_of(scenario: Scenario, radius: float | None = None) -> Mechanochemical
 
 
 def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius: float | None = None,
-                 checkpoint: Path | None = None, wall_time: float | None = None, log=None) -> dict:
-    """Run one scenario to ``t_final`` (or stationarity, or ``wall_time`` seconds); a dict of results.
+                 checkpoint: Path | None = None, wall_time: float | None = None, max_steps: int | None = None,
+                 log=None) -> dict:
+    """Run one scenario to ``t_final`` (or stationarity, ``wall_time`` seconds, ``max_steps`` steps); a dict.
 
     With ``checkpoint`` (an .npz path) the run resumes from it when it exists and saves
     to it every 10 steps and at the end.
@@ -159,7 +160,8 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
     def save(state, rec):
         save_checkpoint(checkpoint, state, {**meta, "history": {"counters": counters}})
 
-    result = loop.run(watch, checkpoint=save if checkpoint is not None else None, wall_time=wall_time)
+    result = loop.run(watch, checkpoint=save if checkpoint is not None else None, wall_time=wall_time,
+                      max_steps=max_steps)
     pts = loop.points
     tri = mesh.triangles
     measures = find_spots(pts, tri, loop.c, params.c_star)

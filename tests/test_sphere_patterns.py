@@ -1,0 +1,32 @@
+"""The sphere-patterns scenarios: parameters as design.md 1.5 states them, and a run stopped
+part-way resumes from its checkpoint to the same state as an uninterrupted run."""
+
+import numpy as np
+import pytest
+
+from femshell.validation.sphere_patterns import SCENARIOS, model_of, paper_vertices, run_scenario
+
+
+def test_scenarios_carry_the_paper_parameters():
+    p = model_of(SCENARIOS["icosahedral"])
+    assert p.lam_max / p.lam_min == pytest.approx(1.05) and p.h0 == 4.0 and p.c_star == 0.05 and p.w == 100.0
+    assert p.natural_curvature == pytest.approx(1 / 30)
+    assert model_of(SCENARIOS["uniform-thickness"]).thickness_mode == "uniform"
+    assert model_of(SCENARIOS["propagation"]).D == 0.5 and model_of(SCENARIOS["propagation"]).h0 == 1.0
+    assert model_of(SCENARIOS["small-sphere"]).natural_curvature == pytest.approx(1 / 15)
+    assert paper_vertices(30.0) == 25000 and paper_vertices(15.0) == 6250
+
+
+def test_interrupted_scenario_resumes_to_the_uninterrupted_state(tmp_path):
+    kw = dict(t_final=0.3, n_vertices=300, radius=10.0)
+    whole = run_scenario(SCENARIOS["spots"], **kw)
+    ck = tmp_path / "spots.npz"
+    part = run_scenario(SCENARIOS["spots"], checkpoint=ck, max_steps=3, **kw)
+    assert part["status"] == "max_steps" and part["t"] < whole["t"] and ck.exists()
+    rest = run_scenario(SCENARIOS["spots"], checkpoint=ck, **kw)
+    assert rest["status"] == whole["status"] and rest["t"] == whole["t"]
+    assert rest["steps"] == whole["steps"] and rest["saddles"] == 0 and rest["negative_c"] == 0
+    np.testing.assert_allclose(rest["c"], whole["c"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rest["points"], whole["points"], rtol=0, atol=1e-10)
+    with pytest.raises(ValueError, match="another run"):
+        run_scenario(SCENARIOS["spots"], checkpoint=ck, t_final=0.5, n_vertices=300, radius=10.0)
