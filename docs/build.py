@@ -19,7 +19,7 @@ from pathlib import Path
 
 DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
-PAGES = ["theory.md", "validation-report.md", "accuracy-and-cost.md", "disk-crosscheck.md"]
+PAGES = ["theory.md", "validation-report.md", "accuracy-and-cost.md", "disk-crosscheck.md", "sphere-patterns.md"]
 #: tutorials, in reading order: docs/tutorials/NAME.md (the page) and NAME.py (its script)
 TUTORIALS = ["buckling", "mechanochemistry", "convergence"]
 

@@ -6,11 +6,11 @@ each here. This script runs any of them on a sphere of chosen radius and vertex 
 most ``--wall-time`` seconds each (to t_final or a stationary pattern if that comes first),
 resumable from per-scenario checkpoints, and writes per scenario
 
-* ``validation/results/studies/sphere-patterns/NAME.json``: status, time reached, the paper's
+* ``validation/results/studies/sphere-patterns/NAME-R<radius>-n<vertices>.json``: status, time reached, the paper's
   measures (N_sp, ridges, patterned fraction, spot radius, spacing), max c, max H, and the
   run's invariants (negative c, non-finite steps, saddles accepted);
-* ``docs/images/sphere-patterns/NAME-top.png`` (c seen from the pole, as the paper's figures)
-  and ``NAME-side.png`` (shape coloured by the distance from the centre).
+* ``docs/images/sphere-patterns/NAME-R<radius>-n<vertices>-top.png`` (c seen from the pole, as the
+  paper's figures) and ``...-side.png`` (shape coloured by the distance from the centre).
 
     python validation/sphere_patterns_study.py [--scenarios spots decay ...] [--scale 0.5]
         [--n-vertices 2700] [--t-final 100] [--wall-time 900] [--doc docs/sphere-patterns.md]
@@ -56,12 +56,17 @@ def table(records: list) -> str:
              "spacing | max c / c* | max H | invariants |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     order = {n: k for k, n in enumerate(SCENARIOS)}
-    for d in sorted(records, key=lambda d: order.get(d["scenario"], 99)):
+    for d in sorted(records, key=lambda d: (order.get(d["scenario"], 99), d["n_vertices"])):
         ok = d["negative_c"] == 0 and d["non_finite"] == 0 and d["saddles"] == 0 and d["status"] != "failed"
         lines.append(f"| {d['scenario']} | {d['paper']} | {d['radius']:g}, {d['n_vertices']} | {d['status']} | "
                      f"{d['t']:.3g} | {d['n_spots']} ({d['n_ridges']}) | {d['fraction_patterned']:.3f} | "
                      f"{fmt(d['spot_radius'])} | {fmt(d['spacing'])} | {d['max_c'] / d['c_star']:.3g} | "
                      f"{d['max_H']:.3g} | {'ok' if ok else 'VIOLATED'} |")
+    lines.append("")
+    for d in sorted(records, key=lambda d: (order.get(d["scenario"], 99), d["n_vertices"])):
+        im = f"images/sphere-patterns/{d['stem']}"
+        lines.append(f'<img src="{im}-top.png" alt="{d["stem"]} top" width="45%"> '
+                     f'<img src="{im}-side.png" alt="{d["stem"]} side" width="45%">')
     return "\n".join(lines)
 
 
@@ -89,12 +94,13 @@ def main(argv=None):
             r = run_scenario(SCENARIOS[name], t_final=args.t_final, n_vertices=nv,
                              radius=radius, checkpoint=ck, wall_time=args.wall_time,
                              log=lambda s: print(s, flush=True) if s.startswith(("step", "initial")) else None)
-            rec = record(r, radius, args.wall_time)
-            atomic_write_json(RESULTS / f"{name}.json", rec)
-            title = f"{name}: t = {r['t']:.3g}, N_sp = {rec['n_spots']}"
-            top_view(r["points"], r["triangles"], ("c", r["c"]), IMAGES / f"{name}-top.png", title=title,
+            stem = f"{name}-R{radius:g}-n{nv}"
+            rec = {**record(r, radius, args.wall_time), "stem": stem}
+            atomic_write_json(RESULTS / f"{stem}.json", rec)
+            title = f"{name}: R = {radius:g}, {r['n_vertices']} vertices, t = {r['t']:.3g}, N_sp = {rec['n_spots']}"
+            top_view(r["points"], r["triangles"], ("c", r["c"]), IMAGES / f"{stem}-top.png", title=title,
                      clim=(0.0, r["c_max"]))
-            side_view(r["points"], r["triangles"], IMAGES / f"{name}-side.png", title=title)
+            side_view(r["points"], r["triangles"], IMAGES / f"{stem}-side.png", title=title)
             print(f"   {rec['status']} t = {rec['t']:.4g}, {rec['steps']} steps, N_sp {rec['n_spots']}, "
                   f"{rec['wall_s']:.0f} s", flush=True)
     records = [json.loads(p.read_text()) for p in sorted(RESULTS.glob("*.json"))]

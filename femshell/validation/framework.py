@@ -101,8 +101,10 @@ def run_case(name: str, level: str = "quick", out_dir: str | os.PathLike = "vali
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    # cases with long full levels keep checkpoints next to their results
-    rows = mod.run(level, out_dir=out) if "out_dir" in inspect.signature(mod.run).parameters else mod.run(level)
+    # cases with long full levels keep checkpoints next to their results and report progress
+    accepts = inspect.signature(mod.run).parameters
+    extra = {k: v for k, v in (("out_dir", out), ("log", log)) if k in accepts}
+    rows = mod.run(level, **extra)
     total = time.perf_counter() - t0
     for r in rows:
         status = "" if r.passed is None else ("PASS" if r.passed else "FAIL")

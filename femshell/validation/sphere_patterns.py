@@ -60,7 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import find_spots, polar_profile
-from ..coupled import CoupledLoop, InitialSpot, MechanochemicalModel, TimeStepping
+from ..coupled import CoupledError, CoupledLoop, InitialSpot, MechanochemicalModel, TimeStepping
 from ..io import load_checkpoint, save_checkpoint
 from ..mesh import sphere
 from .framework import Row
@@ -191,7 +191,14 @@ def run(level: str = "quick", out_dir=None, log=None) -> list:
         R = cfg["radius"] or sc.radius
         nv = nv or paper_vertices(R)
         ck = None if ck_dir is None else ck_dir / f"{name}.npz"
-        r = run_scenario(sc, t_final=t_final, n_vertices=nv, radius=R, checkpoint=ck, log=log)
+        if log:
+            log(f"  {name}: R = {R:g}, ~{nv} vertices, to t = {t_final:g} or stationary"
+                + (f", checkpoint {ck}" if ck else ""))
+        try:
+            r = run_scenario(sc, t_final=t_final, n_vertices=nv, radius=R, checkpoint=ck, log=log)
+        except CoupledError as exc:        # the initial equilibrium failed: the other scenarios still run
+            rows.append(Row(f"{name}: run failed ({str(exc)[:80]})", 1.0, 0.0, 0.0, nv, 0.0))
+            continue
         _LAST[name] = r
         rows.extend(scenario_rows(sc, r))
     return rows
