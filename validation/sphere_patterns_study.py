@@ -105,14 +105,14 @@ def main(argv=None):
                   f"{rec['wall_s']:.0f} s", flush=True)
     records = [json.loads(p.read_text()) for p in sorted(RESULTS.glob("*.json"))]
     text = table(records)
-    print(text)
-    if args.doc is not None:
+    if args.doc is not None:              # before printing: a closed pipe must not lose the page
         doc = args.doc.read_text()
         if BEGIN not in doc or END not in doc:
             sys.exit(f"{args.doc}: no generated-table markers ({BEGIN} ... {END})")
         head, rest = doc.split(BEGIN, 1)
         tail = rest.split(END, 1)[1]
         atomic_write_text(args.doc, f"{head}{BEGIN}\n{text}\n{END}{tail}")
+    print(text)
 
 
 if __name__ == "__main__":

@@ -67,7 +67,8 @@ from .framework import Row
 
 NAME = "sphere-patterns"
 DESCRIPTION = ("the paper's sphere scenarios (spots, ridges, decay, D, thickness, R = 15, icosahedral): "
-               "coupled runs from one seeded spot, pattern measures beside the paper's outcomes")
+               "coupled runs from one seeded spot, pattern measures beside the paper's outcomes "
+               "(full level: paper resolution, 10-12 h per scenario here, resumable)")
 SOURCE = ("Zakharov & Dasbiswas, Mechanochemical induction of wrinkling morphogenesis on elastic shells, "
           "section 3 (spring network, ~25 000 nodes), outcomes listed in design.md 1.5; reported beside ours "
           "without tolerance. Toleranced: c >= 0 and finite, no saddle accepted, no failed run, fixed point "
