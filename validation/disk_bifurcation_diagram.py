@@ -35,14 +35,6 @@ import numpy as np
 from femshell.validation.disk_wrinkles import EPS_END, _follow_branch, follow
 
 
-def mode_z(disk, mode):
-    """Out-of-plane part of a mode (free unknowns) at the vertices, best-fit plane removed."""
-    q = np.zeros(disk.model.n_total)
-    q[disk.model.free] = mode
-    z = q[: 3 * disk.n_vertices].reshape(-1, 3)[:, 2]
-    return z - disk._plane @ np.linalg.lstsq(disk._plane, z, rcond=None)[0]
-
-
 def branch_points(branch):
     """(ε, |w|max, stable) of the regular points of a branch."""
     rows = [r for r in branch.rows if not r["special"]]
@@ -92,7 +84,8 @@ def draw(result, flat, path, title):
     x, y = d.points[:, 0], d.points[:, 1]
     near = np.hypot(x, y)[d.triangles].max(axis=1) < 2 * d.R2
     tri = d.triangles[near]
-    fields = [(f"BP{k + 1} mode, ε = {sp.parameter:.4g}", mode_z(d, sp.modes[:, 0])) for k, sp in enumerate(sps)]
+    fields = [(f"BP{k + 1} mode, ε = {sp.parameter:.4g}", d.mode_deflection(sp.modes[:, 0]))
+              for k, sp in enumerate(sps)]
     fields.append((f"w at ε = {EPS_END}", result["w"]))
     for k, (name, z) in enumerate(fields):
         a = fig.add_subplot(sub[k])

@@ -1048,20 +1048,10 @@ class ContinuationRunner(BaseRunner):
         d = self.rd.path / "special"
         d.mkdir(exist_ok=True)
         model = self.parts.model
-        n = self.mesh.n_vertices
-
-        def vec(v, with_fixed):
-            if with_fixed:
-                q = model.full(v)
-            else:
-                q = np.zeros(model.n_total)
-                q[model.free] = v
-            return q[: 3 * n].reshape(-1, 3)
-
-        x = vec(sp.u, True)
+        x = model.positions(sp.u)
         pdata = {"displacement": x - self.mesh.points}
         for j in range(sp.modes.shape[1]):
-            pdata[f"mode_{j}"] = vec(sp.modes[:, j], False)
+            pdata[f"mode_{j}"] = model.mode_displacements(sp.modes[:, j])
         path = d / f"{label}-{k:02d}-{sp.kind}.vtu"
         import meshio
 
@@ -1075,8 +1065,9 @@ class ContinuationRunner(BaseRunner):
             from ..analysis import count_wrinkles
             try:
                 info["mode_wrinkles"] = count_wrinkles(self.mesh.points,
-                                                       self.deflection(vec(sp.modes[:, 0], False)[:, 2]),
-                                                       self.r2, min_mode=1, rel_tol=1e-3)
+                                                       self.deflection(model.mode_displacements(sp.modes[:, 0])[:, 2]),
+                                                       self.r2, triangles=self.mesh.triangles, min_mode=1,
+                                                       rel_tol=1e-3)
             except ValueError:
                 pass
         self.specials.append(info)

@@ -158,6 +158,13 @@ class ShellModel:
         """Vertex positions (n, 3) of a state."""
         return self.full(u)[: 3 * self.mesh.n_vertices].reshape(-1, 3)
 
+    def mode_displacements(self, v: np.ndarray) -> np.ndarray:
+        """Vertex displacements (n, 3) of a direction v in the free unknowns (an eigenvector, a
+        tangent): the prescribed components do not move, so they are zero, not q_fixed."""
+        q = np.zeros(self.n_total)
+        q[self.free] = v
+        return q[: 3 * self.mesh.n_vertices].reshape(-1, 3)
+
     def edge_angles(self, u):
         return self.full(u)[3 * self.mesh.n_vertices:]
 

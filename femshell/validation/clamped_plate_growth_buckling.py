@@ -99,18 +99,10 @@ def shell_mesh_writer(model, fmt="vtu"):
     ``displacement`` (the state) and ``mode_j`` (the displacement part of each critical mode)."""
     from ..mesh.io import write_mesh
 
-    n = model.mesh.n_vertices
-
-    def vertex_field(v, with_fixed):
-        q = model.full(v) if with_fixed else np.zeros(model.n_total)
-        if not with_fixed:
-            q[model.free] = v
-        return q[: 3 * n].reshape(-1, 3)
-
     def writer(stem, u, modes):
         path = f"{stem}.{fmt}"
-        data = {"displacement": vertex_field(u, True) - model.mesh.points}
-        data.update({k: vertex_field(v, False) for k, v in modes.items()})
+        data = {"displacement": model.positions(u) - model.mesh.points}
+        data.update({k: model.mode_displacements(v) for k, v in modes.items()})
         write_mesh(model.mesh, path, point_data=data)
         return path
 
@@ -263,7 +255,7 @@ def crossing_groups(mesh, model, bps, rel=0.02):
     """
     groups = []
     for p in bps:
-        z = np.array([_vertex_z(model, p.modes[:, j]) for j in range(p.modes.shape[1])])
+        z = np.array([model.mode_displacements(p.modes[:, j])[:, 2] for j in range(p.modes.shape[1])])
         n, _ = azimuthal_wavenumber(mesh.points, z)
         if groups and groups[-1][1] == n and abs(p.parameter / groups[-1][2][0].parameter - 1) <= rel:
             groups[-1][2].append(p)
@@ -292,12 +284,6 @@ def richardson_row(quantity, rows, sizes, tol):
     ext = (v2 * h1**2 - v1 * h2**2) / (h1**2 - h2**2)
     return [Row(f"{quantity}, Richardson h^2 from h={h1}, {h2}", ext, 1.0, tol, vals[h2].n_vertices,
                 vals[h1].wall_s + vals[h2].wall_s)]
-
-
-def _vertex_z(model, v):
-    q = np.zeros(model.n_total)
-    q[model.free] = v
-    return q[: 3 * model.mesh.n_vertices].reshape(-1, 3)[:, 2]
 
 
 def _post_buckling(problem, bp, record, h, nv, gc, log):

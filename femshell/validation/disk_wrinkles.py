@@ -194,11 +194,17 @@ class Disk:
         thick = np.where(self.inside, self.h / (1.0 + eps) ** 2, self.h)
         return RestState(self.a0 * s2[:, None, None], np.zeros_like(self.a0), thick)
 
+    def _off_plane(self, z):
+        """z minus its best-fit plane a + b X + c Y (X, Y reference): a rigid tilt is no wave."""
+        return z - self._plane @ np.linalg.lstsq(self._plane, z, rcond=None)[0]
+
     def deflection(self, u):
-        """w: the z of the deformed vertices minus their best-fit plane a + b X + c Y (X, Y reference)."""
-        z = self.model.positions(u)[:, 2]
-        coef, *_ = np.linalg.lstsq(self._plane, z, rcond=None)
-        return z - self._plane @ coef
+        """w: the z of the deformed vertices minus their best-fit plane."""
+        return self._off_plane(self.model.positions(u)[:, 2])
+
+    def mode_deflection(self, v):
+        """Out-of-plane part of a direction v in the free unknowns (a critical mode), best-fit plane removed."""
+        return self._off_plane(self.model.mode_displacements(v)[:, 2])
 
     def count(self, w):
         """Wrinkles of w on the material circle r = COUNT_RADIUS · R2 (0: axisymmetric or flat)."""
@@ -223,13 +229,9 @@ class Disk:
     def mode_wavenumber(self, modes):
         """Dominant azimuthal wavenumber of the out-of-plane part of critical mode(s) (best-fit plane
         removed), summed power on circles r = (0.5, 0.85, 1.15, 1.5) R2."""
-        n = self.n_vertices
         power = 0.0
         for v in np.atleast_2d(np.asarray(modes).T):
-            q = np.zeros(self.model.n_total)
-            q[self.model.free] = v
-            z = q[: 3 * n].reshape(-1, 3)[:, 2]
-            z = z - self._plane @ np.linalg.lstsq(self._plane, z, rcond=None)[0]    # a rigid tilt is no wave
+            z = self.mode_deflection(v)
             for f in (0.5, 0.85, 1.15, 1.5):
                 power = power + azimuthal_spectrum(self.points, z, f * self.R2, triangles=self.triangles)[:25] ** 2
         return int(np.argmax(power))
@@ -475,6 +477,8 @@ def run(level, log=None):
 
 def plot(rows, fig):
     """Counts against R2 (ours, the paper's steps) and top views of w at ε = 0.5 for up to three cases."""
+    from matplotlib.patches import Circle
+
     results = _LAST.get("results", [])
     gs = fig.add_gridspec(1, 4, width_ratios=[1.3, 1, 1, 1])
     ax = fig.add_subplot(gs[0, 0])
@@ -505,8 +509,7 @@ def plot(rows, fig):
         vmax = float(np.abs(w).max()) or 1.0
         tpc = a.tripcolor(x[:, 0], x[:, 1], d.triangles, w, shading="gouraud", cmap="RdBu_r",
                           vmin=-vmax, vmax=vmax)
-        a.add_patch(__import__("matplotlib.patches", fromlist=["Circle"]).Circle(
-            (0, 0), COUNT_RADIUS * R2, fill=False, ls="--", lw=0.6, color="k"))
+        a.add_patch(Circle((0, 0), COUNT_RADIUS * R2, fill=False, ls="--", lw=0.6, color="k"))
         a.set_xlim(-lim, lim)
         a.set_ylim(-lim, lim)
         a.set_aspect("equal")
