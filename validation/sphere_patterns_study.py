@@ -27,7 +27,7 @@ import math
 import sys
 from pathlib import Path
 
-from femshell.io import atomic_write_json, atomic_write_text
+from femshell.io import atomic_write_json, replace_generated
 from femshell.validation.sphere_patterns import SCENARIOS, run_scenario
 from femshell.viz import side_view, top_view
 
@@ -106,12 +106,10 @@ def main(argv=None):
     records = [json.loads(p.read_text()) for p in sorted(RESULTS.glob("*.json"))]
     text = table(records)
     if args.doc is not None:              # before printing: a closed pipe must not lose the page
-        doc = args.doc.read_text()
-        if BEGIN not in doc or END not in doc:
-            sys.exit(f"{args.doc}: no generated-table markers ({BEGIN} ... {END})")
-        head, rest = doc.split(BEGIN, 1)
-        tail = rest.split(END, 1)[1]
-        atomic_write_text(args.doc, f"{head}{BEGIN}\n{text}\n{END}{tail}")
+        try:
+            replace_generated(args.doc, BEGIN, END, text)
+        except ValueError as exc:
+            sys.exit(str(exc))
     print(text)
 
 
