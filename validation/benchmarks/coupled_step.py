@@ -283,7 +283,7 @@ def _extension(r):
     return (len(st) + extra) / max(len(st), 1), dt_recent, extra
 
 
-def print_table(results, full_size):
+def print_table(results):
     print()
     print("per accepted step, mean over the timed steps (s); Newton = Hess + E+g0 + factor + solve + lsearch + "
           "escape; check = the part of Hess + factor spent at the converged point (stability check)")
@@ -305,7 +305,6 @@ def print_table(results, full_size):
     for r in results:
         m = summarise(r)
         if r.get("full"):
-            S = len(r["steps"]) + r["rejected"]
             I = sum(s["iterations"] for s in r["steps"])
             print(f"{r['vertices']:>8}: mesh {r['t_mesh']:.1f}  setup {r['t_setup']:.1f}  loop {r['t_loop']:.1f}  "
                   f"total {r['t_mesh'] + r['t_setup'] + r['t_loop']:.1f} s = {(r['t_mesh'] + r['t_setup'] + r['t_loop']) / 60:.1f} min "
@@ -387,9 +386,9 @@ def main():
                     json.dump(results, f)
             if r.get("profile"):
                 print(f"\ncProfile of the timed steps, {r['vertices']} vertices:\n{r['profile']}")
-            print_table(results, a.full)
+            print_table(results)
     else:
-        print_table(results, a.full)
+        print_table(results)
 
 
 if __name__ == "__main__":
