@@ -26,6 +26,7 @@ CASES = {
     "euler-strip": "euler_strip",
     "shallow-arch-snap": "shallow_arch_snap",
     "disk-wrinkles": "disk_wrinkles",
+    "wrinkle-scaling": "wrinkle_scaling",
     "sphere-patterns": "sphere_patterns",
     "laplace-beltrami-sphere": "laplace_beltrami_sphere",
     "curvature": "curvature",
