@@ -9,20 +9,23 @@ Procedure (per state h, ε)
 --------------------------
 Wrinkles are not on the branch followed from the flat state (that is the axisymmetric dome, see
 :mod:`.disk_wrinkles`), so each state is found the way a relaxing network finds it: the flat disk
-is given a broadband perturbation, a small dome plus azimuthal waves k = 2 … 16 of equal amplitude
-and fixed pseudo-random phases (``SEED``) on a band around r = R2, and ε is raised in steps of
-``EPS_STEP`` to its value with Newton with saddle escape (:func:`~femshell.solvers.newton.minimize`,
-``stable=True``) at every step. The end state must be a local minimum: the inertia of its
-constrained Hessian (LDLᵀ) must have no negative eigenvalue (the toleranced rows).
+is given a perturbation and ε is raised in steps of ``EPS_STEP`` to its value with Newton with
+saddle escape (:func:`~femshell.solvers.newton.minimize`, ``stable=True``) at every step. Two starts
+on the same mesh: a small dome alone, and the dome plus azimuthal waves k = 2 … 16 of equal
+amplitude and fixed pseudo-random phases (``SEED``) on a band around r = R2. The end state of lower
+energy is the measured one (the seeded start can end in a wrinkled local minimum that the disk
+does not prefer, and the dome start can break its symmetry at a saddle). It must be a local
+minimum: the inertia of its constrained Hessian (LDLᵀ) must have no negative eigenvalue (the
+toleranced rows).
 
 Measure: the out-of-plane deflection w (best-fit plane removed) is sampled on the circles
 r = ``RIM_RADII`` · R2 around the rim of the grown region, where a wrinkle would be; the azimuthal
 Fourier powers are summed over them. The state is *wrinkled* when the largest amplitude with
 k ≥ 2 is at least ``REL_TOL`` of the axisymmetric amplitude (the same 5 % threshold as the
-wrinkle count of :mod:`.disk_wrinkles`); its wavenumber n is that dominant k and its wavelength the
+wrinkle count of :mod:`.disk_wrinkles`). Its wavenumber n is that dominant k and its wavelength the
 paper's λ = 2π R2 / n (the paper: λ ≈ 6.12 for 2 wrinkles at R2 = 1.95). The far field is left
-out on purpose: there the whole free sheet bends into a saddle (k = 2 growing with r, set by R1,
-not by h).
+out on purpose: there the free sheet bends as a whole (measured at h = 0.25: a saddle, k = 2, whose
+amplitude grows linearly with r, like a cone; not a wave of the rim).
 
 Fit: log λ = a + p log h over the wrinkled states of the h sweep (and log λ against log ε for the ε
 sweep), weighted least squares with the rounding of n as each point's error
@@ -66,26 +69,27 @@ EPS_STEP = 0.05
 #: circles (radius / R2) where the wavenumber is measured, and the wrinkled threshold
 RIM_RADII = (0.7, 0.85, 1.0, 1.15, 1.3)
 REL_TOL = 0.05
-#: h sweep at ε = EPS_FIXED, ε sweep at h = H_FIXED; mesh resolution (edges per R2 along the grown circle)
-EPS_FIXED, H_FIXED = 0.5, 0.5
+#: h sweep at ε = EPS_FIXED, ε sweep at h = h_fixed; mesh resolution (edges per R2 along the grown circle)
+EPS_FIXED = 0.5
 LEVELS = {
-    "quick": {"h": (0.5, 1.0), "eps": (0.3, 0.5), "resolution": 4, "eps_step": 0.1},
-    "full": {"h": (0.25, 0.5, 1.0), "eps": (0.2, 0.35, 0.5), "resolution": 12, "eps_step": EPS_STEP},
+    "quick": {"h": (1.0, 2.0), "eps": (0.3, 0.5), "h_fixed": 1.0, "resolution": 4, "eps_step": 0.1},
+    "full": {"h": (0.25, 0.5, 1.0), "eps": (0.25, 0.5), "h_fixed": 0.5, "resolution": 12, "eps_step": EPS_STEP},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
 
 _LAST = {}
 
 
-def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED):
+def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES):
     """A stable equilibrium of ``disk`` at growth ``eps`` reached from a broadband perturbation (module
-    docstring). Returns (u, n_newton_failures)."""
+    docstring); ``waves=0``: from the small dome alone (the axisymmetric reference state).
+    Returns (u, n_newton_failures)."""
     P = disk.points
     r, phi = np.hypot(P[:, 0], P[:, 1]), np.arctan2(P[:, 1], P[:, 0])
     phases = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, len(SEED_MODES))
-    waves = sum(np.cos(k * phi + p) for k, p in zip(SEED_MODES, phases)) / math.sqrt(len(SEED_MODES))
+    azimuthal = sum(np.cos(k * phi + p) for k, p in zip(SEED_MODES, phases)) / math.sqrt(len(SEED_MODES))
     h, R = disk.h, disk.R2
-    z = SEED_WAVES * h * waves * np.exp(-(((r - R) / (0.5 * R)) ** 2)) + SEED_DOME * h * np.exp(-((r / R) ** 2))
+    z = waves * h * azimuthal * np.exp(-(((r - R) / (0.5 * R)) ** 2)) + SEED_DOME * h * np.exp(-((r / R) ** 2))
     model = disk.model
     q = model.full(model.initial_unknowns())
     q[2: 3 * disk.n_vertices: 3] += z
@@ -133,14 +137,20 @@ def fit_exponent(x, n):
 
 
 def measure(h, eps, resolution, eps_step):
-    """One state: Disk(h, R2), seeded relaxation to ``eps``, stability, rim wavenumber."""
+    """One state: Disk(h, R2); stable states from the dome alone and from the broadband seed; the one of
+    lower energy is the measured state (its rim wavenumber and amplitude, stability)."""
     d = Disk(h, R2, resolution)
-    u, failures = seeded_state(d, eps, eps_step)
-    w = d.deflection(u)
-    n, rel = rim_wavenumber(d, w)
-    return dict(disk=d, u=u, w=w, n=n, rel=rel, wrinkled=rel >= REL_TOL, failures=failures,
-                n_negative=d.n_negative(u, eps), energy=float(d.model.energy(u)),
-                finite=bool(np.all(np.isfinite(u))))
+    starts = {}
+    for name, waves in (("dome", 0.0), ("broadband", SEED_WAVES)):
+        u, failures = seeded_state(d, eps, eps_step, waves=waves)
+        w = d.deflection(u)
+        n, rel = rim_wavenumber(d, w)
+        starts[name] = dict(u=u, w=w, n=n, rel=rel, failures=failures, energy=float(d.model.energy(u)))
+    best = min(starts, key=lambda k: starts[k]["energy"])
+    s = dict(starts[best], disk=d, start=best, starts=starts)
+    s.update(n_negative=d.n_negative(s["u"], eps), finite=bool(np.all(np.isfinite(s["u"]))),
+             wrinkled=s["rel"] >= REL_TOL)
+    return s
 
 
 def run(level, log=None):
@@ -149,16 +159,18 @@ def run(level, log=None):
     cfg = LEVELS[level]
     res = cfg["resolution"]
     states = {}
-    for key in [(h, EPS_FIXED) for h in cfg["h"]] + [(H_FIXED, e) for e in cfg["eps"]]:
+    h_fixed = cfg["h_fixed"]
+    for key in [(h, EPS_FIXED) for h in cfg["h"]] + [(h_fixed, e) for e in cfg["eps"]]:
         if key in states:
             continue
         with timed() as t:
             s = measure(*key, res, cfg["eps_step"])
         s["wall_s"] = t()
         states[key] = s
-        log(f"  h={key[0]:g} eps={key[1]:g}: {s['disk'].n_vertices} vertices, n = {s['n']}, rim amplitude "
-            f"{s['rel']:.3g} of the axisymmetric part, {s['n_negative']} negative eigenvalues, energy "
-            f"{s['energy']:.8g}, {s['failures']} Newton failures ({s['wall_s']:.0f} s)")
+        log(f"  h={key[0]:g} eps={key[1]:g}: {s['disk'].n_vertices} vertices; "
+            + "; ".join(f"from the {k}: energy {v['energy']:.8g}, n = {v['n']}, rim amplitude {v['rel']:.3g}, "
+                        f"{v['failures']} Newton failures" for k, v in s["starts"].items())
+            + f"; lower: {s['start']}, {s['n_negative']} negative eigenvalues ({s['wall_s']:.0f} s)")
     rows = []
     for (h, eps), s in states.items():
         at = f" @ h={h:g} eps={eps:g}"
@@ -166,18 +178,22 @@ def run(level, log=None):
         rows.append(Row("non-axisymmetric rim amplitude / axisymmetric (wrinkled when >= "
                         f"{REL_TOL:g})" + at, s["rel"], None, None, nv, wall))
         rows.append(Row("dominant rim wavenumber n (k >= 2)" + at, s["n"], None, None, nv, wall))
+        e = {k: v["energy"] for k, v in s["starts"].items()}
+        rows.append(Row("energy from the broadband seed / energy from the dome alone - 1 (the lower is measured)"
+                        + at, e["broadband"] / e["dome"] - 1.0, None, None, nv, wall))
         rows.append(Row("negative eigenvalues of the constrained Hessian (0: stable)" + at,
                         s["n_negative"] if s["finite"] else math.nan, 0.0, 0.0, nv, wall))
-    for var, fixed in (("h", f"eps={EPS_FIXED:g}"), ("eps", f"h={H_FIXED:g}")):
-        keys = [(h, EPS_FIXED) for h in cfg["h"]] if var == "h" else [(H_FIXED, e) for e in cfg["eps"]]
+    for var, fixed in (("h", f"eps={EPS_FIXED:g}"), ("eps", f"h={h_fixed:g}")):
+        keys = [(h, EPS_FIXED) for h in cfg["h"]] if var == "h" else [(h_fixed, e) for e in cfg["eps"]]
         ok = [k for k in keys if states[k]["wrinkled"] and states[k]["n_negative"] == 0]
         x = [k[0] if var == "h" else k[1] for k in ok]
         p, sp = fit_exponent(x, [states[k]["n"] for k in ok])
         txt = "not measurable" if math.isnan(p) else f"+- {sp:.2g}"
-        rows.append(Row(f"wrinkled stable states in the {var} sweep at {fixed}", len(ok), None, None))
+        rows.append(Row(f"wrinkled stable states (rim amplitude >= {REL_TOL:g}) in the "
+                        f"{var} sweep at {fixed}", len(ok), None, None))
         rows.append(Row(f"fitted exponent of lambda vs {var} at {fixed} ({txt}; Cerda-Mahadevan "
                         f"{REFERENCE[var]:g})", p, None, None))
-    _LAST["states"] = states
+    _LAST["states"], _LAST["h_fixed"] = states, h_fixed
     return rows
 
 
@@ -189,7 +205,7 @@ def plot(rows, fig):
         return
     ax1, ax2, ax3 = fig.subplots(1, 3)
     for ax, var in ((ax1, "h"), (ax2, "eps")):
-        sel = [(k, s) for k, s in states.items() if (k[1] == EPS_FIXED if var == "h" else k[0] == H_FIXED)]
+        sel = [(k, s) for k, s in states.items() if (k[1] == EPS_FIXED if var == "h" else k[0] == _LAST["h_fixed"])]
         for k, s in sel:
             x = k[0] if var == "h" else k[1]
             ax.loglog([x], [2 * math.pi * R2 / s["n"]], "o", color="tab:blue",
