@@ -61,7 +61,6 @@ SOURCE = ("Cerda & Mahadevan, Geometry and physics of wrinkling, PRL 90, 074302 
           "eps^(-1/4); Zakharov & Dasbiswas section 4 (design.md 1.5, 1.6). Exponents reported, no tolerance; "
           "pass criterion: every measured state is a stable equilibrium")
 
-NU = 0.5
 R2 = 3.0
 #: pseudo-random phases of the seed's azimuthal waves
 SEED = 1
@@ -86,7 +85,7 @@ _LAST = {}
 
 def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES):
     """A stable equilibrium of ``disk`` at growth ``eps`` reached from a broadband perturbation (module
-    docstring); ``waves=0``: from the small dome alone (the axisymmetric reference state).
+    docstring); ``waves=0``: from the small dome alone (an axisymmetric start).
     Returns (u, n_newton_failures)."""
     P = disk.points
     r, phi = np.hypot(P[:, 0], P[:, 1]), np.arctan2(P[:, 1], P[:, 0])
