@@ -226,14 +226,16 @@ class Disk:
         w = self.deflection(u)
         return {"w_max": float(np.abs(w).max()), "wrinkles": self.count(w)}
 
+    def azimuthal_power(self, z, radii, k_max=24):
+        """|ẑ_k|², k = 0..k_max, summed over the material circles r = radii · R2."""
+        return sum(azimuthal_spectrum(self.points, z, f * self.R2, triangles=self.triangles)[: k_max + 1] ** 2
+                   for f in radii)
+
     def mode_wavenumber(self, modes):
         """Dominant azimuthal wavenumber of the out-of-plane part of critical mode(s) (best-fit plane
         removed), summed power on circles r = (0.5, 0.85, 1.15, 1.5) R2."""
-        power = 0.0
-        for v in np.atleast_2d(np.asarray(modes).T):
-            z = self.mode_deflection(v)
-            for f in (0.5, 0.85, 1.15, 1.5):
-                power = power + azimuthal_spectrum(self.points, z, f * self.R2, triangles=self.triangles)[:25] ** 2
+        power = sum(self.azimuthal_power(self.mode_deflection(v), (0.5, 0.85, 1.15, 1.5))
+                    for v in np.atleast_2d(np.asarray(modes).T))
         return int(np.argmax(power))
 
     def n_negative(self, u, eps):

@@ -21,8 +21,8 @@ toleranced rows).
 Measure: the out-of-plane deflection w (best-fit plane removed) is sampled on the circles
 r = ``RIM_RADII`` · R2 around the rim of the grown region, where a wrinkle would be; the azimuthal
 Fourier powers are summed over them. The state is *wrinkled* when the largest amplitude with
-k ≥ 2 is at least ``REL_TOL`` of the axisymmetric amplitude (the same 5 % threshold as the
-wrinkle count of :mod:`.disk_wrinkles`). Its wavenumber n is that dominant k and its wavelength the
+k ≥ 2 is at least ``REL_TOL`` of the axisymmetric amplitude (5 %, the threshold of the wrinkle
+count of :mod:`.disk_wrinkles`, which measures it against the total amplitude on one circle). Its wavenumber n is that dominant k and its wavelength the
 paper's λ = 2π R2 / n (the paper: λ ≈ 6.12 for 2 wrinkles at R2 = 1.95). The far field is left
 out on purpose: there the free sheet bends as a whole (measured at h = 0.25: a saddle, k = 2, whose
 amplitude grows linearly with r, like a cone; not a wave of the rim).
@@ -49,7 +49,6 @@ import math
 
 import numpy as np
 
-from ..analysis import azimuthal_spectrum
 from ..solvers.newton import NewtonError, minimize
 from .disk_wrinkles import Disk, warm_up
 from .framework import Row, timed
@@ -113,9 +112,7 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES):
 def rim_wavenumber(disk, w, radii=RIM_RADII, k_max=24):
     """Dominant azimuthal wavenumber k ≥ 2 of w on circles r = radii · R2 and its amplitude relative to
     the axisymmetric part (root of the summed powers). Returns (n, relative amplitude)."""
-    power = np.zeros(k_max + 1)
-    for f in radii:
-        power += azimuthal_spectrum(disk.points, w, f * disk.R2, triangles=disk.triangles)[: k_max + 1] ** 2
+    power = disk.azimuthal_power(w, radii, k_max)
     n = 2 + int(np.argmax(power[2:]))
     return n, float(math.sqrt(power[n] / max(power[0], 1e-300)))
 
@@ -160,9 +157,10 @@ def run(level, log=None):
     warm_up()
     cfg = LEVELS[level]
     res = cfg["resolution"]
-    states = {}
     h_fixed = cfg["h_fixed"]
-    for key in [(h, EPS_FIXED) for h in cfg["h"]] + [(h_fixed, e) for e in cfg["eps"]]:
+    sweeps = {"h": [(h, EPS_FIXED) for h in cfg["h"]], "eps": [(h_fixed, e) for e in cfg["eps"]]}
+    states = {}
+    for key in sweeps["h"] + sweeps["eps"]:
         if key in states:
             continue
         with timed() as t:
@@ -186,8 +184,7 @@ def run(level, log=None):
         rows.append(Row("negative eigenvalues of the constrained Hessian (0: stable)" + at,
                         s["n_negative"], 0.0, 0.0, nv, wall))
     for var, fixed in (("h", f"eps={EPS_FIXED:g}"), ("eps", f"h={h_fixed:g}")):
-        keys = [(h, EPS_FIXED) for h in cfg["h"]] if var == "h" else [(h_fixed, e) for e in cfg["eps"]]
-        ok = [k for k in keys if states[k]["wrinkled"] and states[k]["n_negative"] == 0]
+        ok = [k for k in sweeps[var] if states[k]["wrinkled"] and states[k]["n_negative"] == 0]
         x = [k[0] if var == "h" else k[1] for k in ok]
         p, sp = fit_exponent(x, [states[k]["n"] for k in ok])
         measurable = not math.isnan(p)
@@ -197,7 +194,7 @@ def run(level, log=None):
         if measurable:      # no NaN in a result file: the row above says why there is no exponent
             rows.append(Row(f"fitted exponent of lambda vs {var} at {fixed} (+- {sp:.2g}; Cerda-Mahadevan "
                             f"{REFERENCE[var]:g})", p, None, None))
-    _LAST["states"], _LAST["h_fixed"] = states, h_fixed
+    _LAST["states"], _LAST["sweeps"] = states, sweeps
     return rows
 
 
@@ -209,7 +206,7 @@ def plot(rows, fig):
         return
     ax1, ax2, ax3 = fig.subplots(1, 3)
     for ax, var in ((ax1, "h"), (ax2, "eps")):
-        sel = [(k, s) for k, s in states.items() if (k[1] == EPS_FIXED if var == "h" else k[0] == _LAST["h_fixed"])]
+        sel = [(k, states[k]) for k in _LAST["sweeps"][var]]
         for k, s in sel:
             x = k[0] if var == "h" else k[1]
             ax.loglog([x], [2 * math.pi * R2 / s["n"]], "o", color="tab:blue",
