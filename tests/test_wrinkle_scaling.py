@@ -45,3 +45,35 @@ def test_fit_exponent_recovers_a_power_law():
 def test_fit_exponent_needs_two_distinct_values():
     assert all(math.isnan(v) for v in ws.fit_exponent([0.5], [4]))
     assert all(math.isnan(v) for v in ws.fit_exponent([0.5, 0.5], [4, 5]))
+
+
+
+def test_seeded_state_resumes_from_its_checkpoint(tmp_path, monkeypatch):
+    """A ramp interrupted after its first ε step resumes there and ends where the uninterrupted ramp
+    ends; a finished ramp is read back without a solve; a checkpoint of another ramp is refused."""
+    d = Disk(1.0, ws.R2, 4)
+    whole, _ = ws.seeded_state(d, 0.2, 0.1)
+    ck = tmp_path / "dome.npz"
+    solve, calls = ws.minimize, []
+
+    def interrupted(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return solve(*a, **k)
+
+    monkeypatch.setattr(ws, "minimize", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        ws.seeded_state(d, 0.2, 0.1, checkpoint=ck)
+    monkeypatch.setattr(ws, "minimize", solve)
+    resumed, _ = ws.seeded_state(d, 0.2, 0.1, checkpoint=ck)
+    assert np.abs(resumed - whole).max() <= 1e-8 * np.abs(whole).max()
+
+    def no_solve(*a, **k):
+        raise AssertionError("a finished ramp was solved again")
+
+    monkeypatch.setattr(ws, "minimize", no_solve)
+    again, _ = ws.seeded_state(d, 0.2, 0.1, checkpoint=ck)
+    np.testing.assert_array_equal(again, resumed)
+    with pytest.raises(ValueError, match="another run"):
+        ws.seeded_state(d, 0.3, 0.1, checkpoint=ck)

@@ -46,9 +46,11 @@ resolution dependence of n has not been measured. This is not yet a wrinkle wave
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
+from ..io import load_checkpoint, save_checkpoint
 from ..solvers.newton import NewtonError, minimize
 from .disk_wrinkles import Disk, warm_up
 from .framework import Row, timed
@@ -82,10 +84,15 @@ REFERENCE = {"h": 0.5, "eps": -0.25}
 _LAST = {}
 
 
-def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES):
+def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, checkpoint=None):
     """A stable equilibrium of ``disk`` at growth ``eps`` reached from a broadband perturbation (module
     docstring); ``waves=0``: from the small dome alone (an axisymmetric start).
-    Returns (u, n_newton_failures)."""
+    Returns (u, n_newton_failures).
+
+    With ``checkpoint`` (an .npz path) the state is saved after every ε step and a run resumes from
+    the last saved step (a finished state is read back, not recomputed); a checkpoint of another
+    disk, seed or ε path is refused (ValueError naming the difference).
+    """
     P = disk.points
     r, phi = np.hypot(P[:, 0], P[:, 1]), np.arctan2(P[:, 1], P[:, 0])
     phases = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, len(SEED_MODES))
@@ -98,7 +105,18 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES):
     u = q[model.free]
     failures = 0
     n_steps = max(1, int(math.ceil(eps / eps_step - 1e-9)))
-    for e in np.linspace(0.0, eps, n_steps + 1)[1:]:
+    meta = {"h": h, "R2": R, "R1": disk.R1, "n_vertices": disk.n_vertices, "n_unknowns": int(len(u)),
+            "eps": float(eps), "n_steps": n_steps, "seed": seed, "waves": waves, "dome": SEED_DOME}
+    done = 0
+    if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
+        state, saved = load_checkpoint(checkpoint)
+        differ = {k: (saved.get(k), v) for k, v in meta.items() if saved.get(k) != v}
+        if differ:
+            raise ValueError(f"{checkpoint} belongs to another run (saved, now: {differ}); remove it to start afresh")
+        u, failures, done = state["u"], state["failures"], state["step"]
+    for step, e in enumerate(np.linspace(0.0, eps, n_steps + 1)[1:], start=1):
+        if step <= done:
+            continue
         disk.problem.set_parameter(float(e))
         try:
             u = minimize(disk.problem, u, stable=True, max_iter=300, log=None).u
@@ -106,6 +124,9 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES):
             failures += 1
             if getattr(exc, "result", None) is not None:
                 u = exc.result.u
+        if checkpoint is not None:
+            save_checkpoint(checkpoint, {"u": u, "failures": failures, "step": step}, meta)
+    disk.problem.set_parameter(float(eps))
     return u, failures
 
 
@@ -136,13 +157,15 @@ def fit_exponent(x, n):
     return float(coef[1]), float(math.sqrt(cov[1, 1]))
 
 
-def measure(h, eps, resolution, eps_step):
+def measure(h, eps, resolution, eps_step, checkpoints=None):
     """One state: Disk(h, R2); stable states from the dome alone and from the broadband seed; the one of
-    lower energy is the measured state (its rim wavenumber and amplitude, stability)."""
+    lower energy is the measured state (its rim wavenumber and amplitude, stability). ``checkpoints``:
+    a directory for the two starts' checkpoints (:func:`seeded_state`)."""
     d = Disk(h, R2, resolution)
     starts = {}
     for name, waves in (("dome", 0.0), ("broadband", SEED_WAVES)):
-        u, failures = seeded_state(d, eps, eps_step, waves=waves)
+        ck = None if checkpoints is None else checkpoints / f"{name}-h{h:g}-eps{eps:g}-res{resolution}-step{eps_step:g}.npz"
+        u, failures = seeded_state(d, eps, eps_step, waves=waves, checkpoint=ck)
         w = d.deflection(u)
         n, rel = rim_wavenumber(d, w)
         starts[name] = dict(u=u, w=w, n=n, rel=rel, failures=failures, energy=float(d.model.energy(u)))
@@ -152,10 +175,15 @@ def measure(h, eps, resolution, eps_step):
     return s
 
 
-def run(level, log=None):
+def run(level, out_dir=None, log=None):
     log = log or (lambda *a, **k: None)
     warm_up()
     cfg = LEVELS[level]
+    checkpoints = None
+    if level == "full":       # hours: every ε step is checkpointed, a second call resumes
+        checkpoints = Path(out_dir or "validation-out") / "wrinkle-scaling-checkpoints"
+        checkpoints.mkdir(parents=True, exist_ok=True)
+        log(f"  checkpoints in {checkpoints}")
     res = cfg["resolution"]
     h_fixed = cfg["h_fixed"]
     sweeps = {"h": [(h, EPS_FIXED) for h in cfg["h"]], "eps": [(h_fixed, e) for e in cfg["eps"]]}
@@ -164,7 +192,7 @@ def run(level, log=None):
         if key in states:
             continue
         with timed() as t:
-            s = measure(*key, res, cfg["eps_step"])
+            s = measure(*key, res, cfg["eps_step"], checkpoints)
         s["wall_s"] = t()
         states[key] = s
         log(f"  h={key[0]:g} eps={key[1]:g}: {s['disk'].n_vertices} vertices; "
