@@ -73,11 +73,13 @@ EPS_STEP = 0.05
 #: circles (radius / R2) where the wavenumber is measured, and the wrinkled threshold
 RIM_RADII = (0.7, 0.85, 1.0, 1.15, 1.3)
 REL_TOL = 0.05
-#: h sweep at ε = EPS_FIXED, ε sweep at h = h_fixed; mesh resolution (edges per R2 along the grown circle)
+#: h sweep at ε = EPS_FIXED, ε sweep at h = h_fixed; mesh resolution (edges per R2 along the grown circle);
+#: mesh_check: states (h, ε) measured again on a finer mesh (resolution) to see whether n depends on the mesh
 EPS_FIXED = 0.5
 LEVELS = {
-    "quick": {"h": (1.0,), "eps": (0.3, 0.5), "h_fixed": 1.0, "resolution": 4, "eps_step": 0.1},
-    "full": {"h": (0.25, 0.5, 1.0), "eps": (0.25, 0.5), "h_fixed": 0.5, "resolution": 12, "eps_step": EPS_STEP},
+    "quick": {"h": (1.0,), "eps": (0.3, 0.5), "h_fixed": 1.0, "resolution": 4, "eps_step": 0.1, "mesh_check": ()},
+    "full": {"h": (0.25, 0.5, 1.0), "eps": (0.25, 0.5), "h_fixed": 0.5, "resolution": 12, "eps_step": EPS_STEP,
+             "mesh_check": ((0.5, 0.5, 18),)},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
 
@@ -186,22 +188,22 @@ def run(level, out_dir=None, log=None):
         log(f"  checkpoints in {checkpoints}")
     res = cfg["resolution"]
     h_fixed = cfg["h_fixed"]
-    sweeps = {"h": [(h, EPS_FIXED) for h in cfg["h"]], "eps": [(h_fixed, e) for e in cfg["eps"]]}
+    sweeps = {"h": [(h, EPS_FIXED, res) for h in cfg["h"]], "eps": [(h_fixed, e, res) for e in cfg["eps"]]}
     states = {}
-    for key in sweeps["h"] + sweeps["eps"]:
+    for key in sweeps["h"] + sweeps["eps"] + list(cfg["mesh_check"]):
         if key in states:
             continue
         with timed() as t:
-            s = measure(*key, res, cfg["eps_step"], checkpoints)
+            s = measure(*key, cfg["eps_step"], checkpoints)
         s["wall_s"] = t()
         states[key] = s
-        log(f"  h={key[0]:g} eps={key[1]:g}: {s['disk'].n_vertices} vertices; "
+        log(f"  h={key[0]:g} eps={key[1]:g} resolution {key[2]}: {s['disk'].n_vertices} vertices; "
             + "; ".join(f"from the {k}: energy {v['energy']:.8g}, n = {v['n']}, rim amplitude {v['rel']:.3g}, "
                         f"{v['failures']} Newton failures" for k, v in s["starts"].items())
             + f"; lower: {s['start']}, {s['n_negative']} negative eigenvalues ({s['wall_s']:.0f} s)")
     rows = []
-    for (h, eps), s in states.items():
-        at = f" @ h={h:g} eps={eps:g}"
+    for (h, eps, r), s in states.items():
+        at = f" @ h={h:g} eps={eps:g} resolution {r}"
         nv, wall = s["disk"].n_vertices, s["wall_s"]
         rows.append(Row("non-axisymmetric rim amplitude / axisymmetric (wrinkled when >= "
                         f"{REL_TOL:g})" + at, s["rel"], None, None, nv, wall))
@@ -222,7 +224,7 @@ def run(level, out_dir=None, log=None):
         if measurable:      # no NaN in a result file: the row above says why there is no exponent
             rows.append(Row(f"fitted exponent of lambda vs {var} at {fixed} (+- {sp:.2g}; Cerda-Mahadevan "
                             f"{REFERENCE[var]:g})", p, None, None))
-    _LAST["states"], _LAST["sweeps"] = states, sweeps
+    _LAST.update(states=states, sweeps=sweeps, mesh_check=list(cfg["mesh_check"]), h_fixed=h_fixed)
     return rows
 
 
@@ -239,6 +241,10 @@ def plot(rows, fig):
             x = k[0] if var == "h" else k[1]
             ax.loglog([x], [2 * math.pi * R2 / s["n"]], "o", color="tab:blue",
                       mfc="tab:blue" if s["wrinkled"] else "none")
+        for k in _LAST["mesh_check"]:       # the same state on the finer mesh
+            if (k[1] == EPS_FIXED) if var == "h" else (k[0] == _LAST["h_fixed"]):
+                ax.loglog([k[0] if var == "h" else k[1]], [2 * math.pi * R2 / states[k]["n"]], "x",
+                          color="tab:red", label=f"resolution {k[2]}")
         xs = np.array(sorted({k[0] if var == "h" else k[1] for k, _ in sel}))
         if len(xs):
             ref = 2 * math.pi * R2 / max(s["n"] for _, s in sel)
@@ -247,7 +253,7 @@ def plot(rows, fig):
         ax.set_ylabel("lambda = 2 pi R2 / n")
         ax.legend(fontsize=6)
         ax.grid(True, which="both", alpha=0.3)
-    (h, eps), s = min(states.items(), key=lambda kv: (kv[0][0], -kv[0][1]))
+    (h, eps, _), s = min(states.items(), key=lambda kv: (kv[0][0], -kv[0][1], kv[0][2]))
     d = s["disk"]
     P = d.points
     r = np.hypot(P[:, 0], P[:, 1])
