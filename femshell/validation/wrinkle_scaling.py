@@ -34,13 +34,15 @@ and −1/4 with no tolerance (the paper's exponents are for a spring network's f
 wrinkles; ours is a measurement); with fewer than two wrinkled states of distinct h (or ε) there is
 no exponent row, and the row counting the wrinkled states says so.
 
-Measured (R2 = 3, resolution 12, 2 131 vertices, 10-25 min per state; the full level was stopped
-before h = 1 and the ε sweep finished): h = 0.25: n = 6, rim amplitude 0.069 (the state from the
-dome alone; the broadband seed ends 0.08 % higher in energy with n = 5, 0.040); h = 0.5: n = 3,
-0.052 (broadband 0.07 % higher, n = 4, 0.057). The stable states are domes whose rim carries a
-non-axisymmetric part of 5-7 % of their height, just above the wrinkle threshold, with different
-n from different starts at nearly equal energy; the two points give λ ∝ h^1, not h^{1/2}, and the
-resolution dependence of n has not been measured. This is not yet a wrinkle wavelength one can fit.
+Measured (full level, R2 = 3, resolution 18 = 3 318 vertices, 7-18 min per state; table and reading
+in docs/disk-crosscheck.md): the stable states are domes whose rim carries a non-axisymmetric part of
+5-12 % of their height. At ε = 0.5, n = 4, 6, 3 for h = 0.25, 0.35, 0.5 and no wrinkle at h = 1
+(fitted exponent 0.17 ± 1.2 against 1/2); at h = 0.25, n = 5, 4, 4 for ε = 0.3, 0.4, 0.5 (+0.47 ± 0.20
+against −1/4). The other start ends 0.08-1.7 % higher in energy, at a different n in six of the seven
+wrinkled states; on the coarser mesh (resolution 12) n is one higher at h = 0.25 and 0.5; and a
+reinstall of the dependencies changed the resolution-12 n at h = 0.25 from 6 to 5 (runs repeat bit
+for bit within one installation). n is decided by the path to within ±1-2, not by h and ε: this is
+not a wrinkle wavelength one can fit a scaling law to.
 """
 
 from __future__ import annotations
@@ -74,12 +76,12 @@ EPS_STEP = 0.05
 RIM_RADII = (0.7, 0.85, 1.0, 1.15, 1.3)
 REL_TOL = 0.05
 #: h sweep at ε = EPS_FIXED, ε sweep at h = h_fixed; mesh resolution (edges per R2 along the grown circle);
-#: mesh_check: states (h, ε) measured again on a finer mesh (resolution) to see whether n depends on the mesh
+#: mesh_check: states (h, ε) measured again on another mesh (resolution) to see whether n depends on the mesh
 EPS_FIXED = 0.5
 LEVELS = {
     "quick": {"h": (1.0,), "eps": (0.3, 0.5), "h_fixed": 1.0, "resolution": 4, "eps_step": 0.1, "mesh_check": ()},
-    "full": {"h": (0.25, 0.5, 1.0), "eps": (0.25, 0.5), "h_fixed": 0.5, "resolution": 12, "eps_step": EPS_STEP,
-             "mesh_check": ((0.5, 0.5, 18),)},
+    "full": {"h": (0.25, 0.35, 0.5, 1.0), "eps": (0.3, 0.4, 0.5), "h_fixed": 0.25, "resolution": 18,
+             "eps_step": EPS_STEP, "mesh_check": ((0.25, 0.5, 12), (0.5, 0.5, 12))},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
 
@@ -224,6 +226,11 @@ def run(level, out_dir=None, log=None):
         if measurable:      # no NaN in a result file: the row above says why there is no exponent
             rows.append(Row(f"fitted exponent of lambda vs {var} at {fixed} (+- {sp:.2g}; Cerda-Mahadevan "
                             f"{REFERENCE[var]:g})", p, None, None))
+    other = [k for k in cfg["mesh_check"] if k[1] == EPS_FIXED and states[k]["wrinkled"] and states[k]["n_negative"] == 0]
+    if len({k[2] for k in other}) == 1 and len({k[0] for k in other}) >= 2:     # the h sweep again on the other mesh
+        p, sp = fit_exponent([k[0] for k in other], [states[k]["n"] for k in other])
+        rows.append(Row(f"fitted exponent of lambda vs h at eps={EPS_FIXED:g}, resolution {other[0][2]} (+- {sp:.2g}; "
+                        f"Cerda-Mahadevan {REFERENCE['h']:g})", p, None, None))
     _LAST.update(states=states, sweeps=sweeps, mesh_check=list(cfg["mesh_check"]), h_fixed=h_fixed)
     return rows
 
@@ -241,19 +248,22 @@ def plot(rows, fig):
             x = k[0] if var == "h" else k[1]
             ax.loglog([x], [2 * math.pi * R2 / s["n"]], "o", color="tab:blue",
                       mfc="tab:blue" if s["wrinkled"] else "none")
-        for k in _LAST["mesh_check"]:       # the same state on the finer mesh
-            if (k[1] == EPS_FIXED) if var == "h" else (k[0] == _LAST["h_fixed"]):
-                ax.loglog([k[0] if var == "h" else k[1]], [2 * math.pi * R2 / states[k]["n"]], "x",
-                          color="tab:red", label=f"resolution {k[2]}")
+        checks = [k for k in _LAST["mesh_check"] if ((k[1] == EPS_FIXED) if var == "h" else (k[0] == _LAST["h_fixed"]))]
+        for i, k in enumerate(checks):       # the same state on the other mesh
+            ax.loglog([k[0] if var == "h" else k[1]], [2 * math.pi * R2 / states[k]["n"]], "x",
+                      color="tab:red", label=None if i else f"resolution {k[2]}")
         xs = np.array(sorted({k[0] if var == "h" else k[1] for k, _ in sel}))
         if len(xs):
             ref = 2 * math.pi * R2 / max(s["n"] for _, s in sel)
             ax.loglog(xs, ref * (xs / xs[0]) ** REFERENCE[var], "k--", lw=0.8, label=f"slope {REFERENCE[var]:g}")
+        ax.set_xticks(xs, [f"{x:g}" for x in xs], minor=False)    # the sweep's values, not crowded decades
+        ax.set_xticks([], minor=True)
         ax.set_xlabel(var)
         ax.set_ylabel("lambda = 2 pi R2 / n")
         ax.legend(fontsize=6)
         ax.grid(True, which="both", alpha=0.3)
-    (h, eps, _), s = min(states.items(), key=lambda kv: (kv[0][0], -kv[0][1], kv[0][2]))
+    swept = {k: states[k] for var in ("h", "eps") for k in _LAST["sweeps"][var]}
+    (h, eps, res), s = min(swept.items(), key=lambda kv: (kv[0][0], -kv[0][1]))
     d = s["disk"]
     P = d.points
     r = np.hypot(P[:, 0], P[:, 1])
@@ -267,5 +277,5 @@ def plot(rows, fig):
     ax3.set_xlim(-lim, lim)
     ax3.set_ylim(-lim, lim)
     ax3.set_aspect("equal")
-    ax3.set_title(f"h={h:g} eps={eps:g}: w minus ring mean", fontsize=7)
+    ax3.set_title(f"h={h:g} eps={eps:g} resolution {res}: w minus ring mean", fontsize=7)
     fig.colorbar(tpc, ax=ax3, fraction=0.046, pad=0.02).ax.tick_params(labelsize=5)
