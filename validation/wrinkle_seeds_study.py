@@ -1,0 +1,105 @@
+"""How the rim wavenumber n of the paper's disk is distributed over random seeds, and λ against h from it.
+
+The `wrinkle-scaling` case measures one state per (h, ε): the lower-energy end of two starts. Its n
+moves by ±1-2 with the start, the mesh and round-off (docs/disk-crosscheck.md), so one sample per h
+cannot give an exponent. This study samples: per (h, ε), the broadband start of
+:func:`femshell.validation.wrinkle_scaling.seeded_state` with the wave phases of seeds 1 … K (everything
+else as in the case). Per sample: n, rim amplitude, energy, negative eigenvalues. Per h: the values
+of n of the wrinkled stable samples, their mean and standard error, and the n of the lowest-energy
+sample. The exponent of λ = 2π R2/n against h is fitted over all wrinkled stable samples
+(:func:`~femshell.validation.wrinkle_scaling.fit_exponent`: its √(χ²/dof) scaling turns the
+seed-to-seed scatter into the uncertainty).
+
+Each finished sample is written to the JSON at once; running the same command again skips the
+samples already there (stop it any time).
+
+    .venv/bin/python validation/wrinkle_seeds_study.py --h 0.25 0.5 --seeds 1 2 3 4 5 6 \\
+        [--eps 0.5] [--resolution 12] [--json validation/results/studies/wrinkle-seeds.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import fcntl
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from femshell.io import atomic_write_json
+from femshell.solvers.linear import LinearSolverError
+from femshell.validation import wrinkle_scaling as ws
+from femshell.validation.disk_wrinkles import Disk, warm_up
+
+
+def sample(h, eps, resolution, seed):
+    d = Disk(h, ws.R2, resolution)
+    t0 = time.perf_counter()
+    u, failures = ws.seeded_state(d, eps, ws.EPS_STEP, seed=seed)
+    n, rel = ws.rim_wavenumber(d, d.deflection(u))
+    try:
+        n_negative, why = int(d.n_negative(u, eps)), None
+    except LinearSolverError as exc:    # seen on thick disks whose seed wandered into crushed elements
+        n_negative, why = None, f"stability not decided: {exc}"
+    return {"h": h, "eps": eps, "resolution": resolution, "seed": seed, "n_vertices": d.n_vertices, "n": n,
+            "rel": rel, "energy": float(d.model.energy(u)), "n_negative": n_negative, "error": why,
+            "newton_failures": failures, "wall_s": time.perf_counter() - t0}
+
+
+def summarise(samples):
+    """Per h: n of the wrinkled stable samples, mean ± standard error, n of the lowest energy; the fit."""
+    ok = [s for s in samples if s["rel"] >= ws.REL_TOL and s["n_negative"] == 0]
+    per_h = {}
+    for h in sorted({s["h"] for s in samples}):
+        all_h = [s for s in samples if s["h"] == h]
+        ns = [s["n"] for s in ok if s["h"] == h]
+        lowest = min(all_h, key=lambda s: s["energy"])
+        per_h[f"{h:g}"] = {"samples": len(all_h), "wrinkled_stable": len(ns), "n": ns,
+                           "n_mean": float(np.mean(ns)) if ns else None,
+                           "n_sem": float(np.std(ns, ddof=1) / math.sqrt(len(ns))) if len(ns) > 1 else None,
+                           "n_lowest_energy": lowest["n"], "lowest_is_wrinkled": lowest in ok}
+    p, sp = ws.fit_exponent([s["h"] for s in ok], [s["n"] for s in ok])
+    fit = None if math.isnan(p) else {"exponent": p, "sigma": sp, "cerda_mahadevan": ws.REFERENCE["h"]}
+    return per_h, fit
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--h", type=float, nargs="+", required=True)
+    ap.add_argument("--seeds", type=int, nargs="+", required=True)
+    ap.add_argument("--eps", type=float, default=ws.EPS_FIXED)
+    ap.add_argument("--resolution", type=int, default=12)
+    ap.add_argument("--json", type=Path, default=Path("validation/results/studies/wrinkle-seeds.json"))
+    a = ap.parse_args(argv)
+    if not 0.0 < a.eps <= 1.0 or min(a.h) <= 0.0 or a.resolution < 2:
+        ap.error("need 0 < eps <= 1, h > 0 and resolution >= 2")
+    samples = json.loads(a.json.read_text())["samples"] if a.json.exists() else []
+    done = {(s["h"], s["eps"], s["resolution"], s["seed"]) for s in samples}
+    warm_up()
+    for h in a.h:
+        for seed in a.seeds:
+            if (h, a.eps, a.resolution, seed) in done:
+                continue
+            s = sample(h, a.eps, a.resolution, seed)
+            print(f"h={h:g} eps={a.eps:g} resolution {a.resolution} seed {seed}: n = {s['n']}, rim amplitude "
+                  f"{s['rel']:.3g}, energy {s['energy']:.8g}, {s['n_negative']} negative eigenvalues "
+                  f"({s['wall_s']:.0f} s){'; ' + s['error'] if s['error'] else ''}", flush=True)
+            a.json.parent.mkdir(parents=True, exist_ok=True)
+            with open(a.json.with_name(a.json.name + ".lock"), "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)    # two processes (one per h) share the file: merge, never overwrite
+                if a.json.exists():
+                    samples = json.loads(a.json.read_text())["samples"]
+                samples.append(s)
+                per_h, fit = summarise(samples)
+                atomic_write_json(a.json, {"study": "wrinkle-seeds", "R2": ws.R2, "rel_tol": ws.REL_TOL,
+                                           "samples": samples, "per_h": per_h, "fit": fit})
+    per_h, fit = summarise(samples)
+    for h, v in per_h.items():
+        print(f"h={h}: n = {v['n']} (mean {v['n_mean']}, s.e. {v['n_sem']}), lowest energy n = {v['n_lowest_energy']}")
+    print("fit:", fit)
+
+
+if __name__ == "__main__":
+    main()
