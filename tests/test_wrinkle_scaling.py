@@ -47,7 +47,6 @@ def test_fit_exponent_needs_two_distinct_values():
     assert all(math.isnan(v) for v in ws.fit_exponent([0.5, 0.5], [4, 5]))
 
 
-
 def test_seeded_state_resumes_from_its_checkpoint(tmp_path, monkeypatch):
     """A ramp interrupted after its first ε step resumes there and ends where the uninterrupted ramp
     ends; a finished ramp is read back without a solve; a checkpoint of another ramp is refused."""
