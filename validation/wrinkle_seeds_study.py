@@ -48,6 +48,10 @@ def sample(h, eps, resolution, seed):
             "newton_failures": failures, "wall_s": time.perf_counter() - t0}
 
 
+def read_samples(path):
+    return json.loads(path.read_text())["samples"] if path.exists() else []
+
+
 def summarise(samples):
     """Per h: n of the wrinkled stable samples, mean ± standard error, n of the lowest energy; the fit."""
     ok = [s for s in samples if s["rel"] >= ws.REL_TOL and s["n_negative"] == 0]
@@ -75,7 +79,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if not 0.0 < a.eps <= 1.0 or min(a.h) <= 0.0 or a.resolution < 2:
         ap.error("need 0 < eps <= 1, h > 0 and resolution >= 2")
-    samples = json.loads(a.json.read_text())["samples"] if a.json.exists() else []
+    samples = read_samples(a.json)
     other = {(s["eps"], s["resolution"]) for s in samples} - {(a.eps, a.resolution)}
     if other:       # the summary groups by h only
         ap.error(f"{a.json} holds samples at (eps, resolution) = {sorted(other)}; use another --json for "
@@ -93,13 +97,11 @@ def main(argv=None):
             a.json.parent.mkdir(parents=True, exist_ok=True)
             with open(a.json.with_name(a.json.name + ".lock"), "w") as lock:
                 fcntl.flock(lock, fcntl.LOCK_EX)    # two processes (one per h) share the file: merge, never overwrite
-                if a.json.exists():
-                    samples = json.loads(a.json.read_text())["samples"]
-                samples.append(s)
+                samples = read_samples(a.json) + [s]
                 per_h, fit = summarise(samples)
                 atomic_write_json(a.json, {"study": "wrinkle-seeds", "R2": ws.R2, "rel_tol": ws.REL_TOL,
                                            "samples": samples, "per_h": per_h, "fit": fit})
-    per_h, fit = summarise(samples)
+    per_h, fit = summarise(read_samples(a.json))     # with what another process added meanwhile
     for h, v in per_h.items():
         print(f"h={h}: n = {v['n']} (mean {v['n_mean']}, s.e. {v['n_sem']}), lowest energy n = {v['n_lowest_energy']}")
     print("fit:", fit)

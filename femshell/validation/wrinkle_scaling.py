@@ -215,8 +215,14 @@ def run(level, out_dir=None, log=None):
                         + at, e["broadband"] / e["dome"] - 1.0, None, None, nv, wall))
         rows.append(Row("negative eigenvalues of the constrained Hessian (0: stable)" + at,
                         s["n_negative"], 0.0, 0.0, nv, wall))
-    for var, fixed in (("h", f"eps={EPS_FIXED:g}"), ("eps", f"h={h_fixed:g}")):
-        ok = [k for k in sweeps[var] if states[k]["wrinkled"] and states[k]["n_negative"] == 0]
+    # the mesh-check states that belong to each sweep; those of the h sweep are fitted again on their own
+    checks = {"h": [k for k in cfg["mesh_check"] if k[1] == EPS_FIXED],
+              "eps": [k for k in cfg["mesh_check"] if k[0] == h_fixed]}
+    series = [("h", sweeps["h"], f"eps={EPS_FIXED:g}"), ("eps", sweeps["eps"], f"h={h_fixed:g}")]
+    if len({k[2] for k in checks["h"]}) == 1:
+        series.append(("h", checks["h"], f"eps={EPS_FIXED:g}, resolution {checks['h'][0][2]}"))
+    for var, keys, fixed in series:
+        ok = [k for k in keys if states[k]["wrinkled"] and states[k]["n_negative"] == 0]
         x = [k[0] if var == "h" else k[1] for k in ok]
         p, sp = fit_exponent(x, [states[k]["n"] for k in ok])
         measurable = not math.isnan(p)
@@ -226,12 +232,7 @@ def run(level, out_dir=None, log=None):
         if measurable:      # no NaN in a result file: the row above says why there is no exponent
             rows.append(Row(f"fitted exponent of lambda vs {var} at {fixed} (+- {sp:.2g}; Cerda-Mahadevan "
                             f"{REFERENCE[var]:g})", p, None, None))
-    other = [k for k in cfg["mesh_check"] if k[1] == EPS_FIXED and states[k]["wrinkled"] and states[k]["n_negative"] == 0]
-    if len({k[2] for k in other}) == 1 and len({k[0] for k in other}) >= 2:     # the h sweep again on the other mesh
-        p, sp = fit_exponent([k[0] for k in other], [states[k]["n"] for k in other])
-        rows.append(Row(f"fitted exponent of lambda vs h at eps={EPS_FIXED:g}, resolution {other[0][2]} (+- {sp:.2g}; "
-                        f"Cerda-Mahadevan {REFERENCE['h']:g})", p, None, None))
-    _LAST.update(states=states, sweeps=sweeps, mesh_check=list(cfg["mesh_check"]), h_fixed=h_fixed)
+    _LAST.update(states=states, sweeps=sweeps, checks=checks)
     return rows
 
 
@@ -248,8 +249,7 @@ def plot(rows, fig):
             x = k[0] if var == "h" else k[1]
             ax.loglog([x], [2 * math.pi * R2 / s["n"]], "o", color="tab:blue",
                       mfc="tab:blue" if s["wrinkled"] else "none")
-        checks = [k for k in _LAST["mesh_check"] if ((k[1] == EPS_FIXED) if var == "h" else (k[0] == _LAST["h_fixed"]))]
-        for i, k in enumerate(checks):       # the same state on the other mesh
+        for i, k in enumerate(_LAST["checks"][var]):       # the same state on the other mesh
             ax.loglog([k[0] if var == "h" else k[1]], [2 * math.pi * R2 / states[k]["n"]], "x",
                       color="tab:red", label=None if i else f"resolution {k[2]}")
         xs = np.array(sorted({k[0] if var == "h" else k[1] for k, _ in sel}))
