@@ -286,7 +286,11 @@ def _split_hessian(interior):
             H = H.at[:9, pk].add(w[:9, 9:12]).at[pk, :9].add(w[9:12, :9]).at[pk, pk].add(w[9:12, 9:12])
             H = H.at[:9, tk].add(w[:9, 12]).at[tk, :9].add(w[12, :9])
             H = H.at[pk, tk].add(w[9:12, 12]).at[tk, pk].add(w[12, 9:12]).at[tk, tk].add(w[12, 12])
-        return H.at[:9, :9].add(hxx)
+        H = H.at[:9, :9].add(hxx)
+        # forward-over-reverse Hessians are symmetric only up to rounding, which on badly
+        # distorted elements reaches ~1e-8 of the largest entry: enough for a symmetric
+        # factorisation's check to refuse the assembled matrix
+        return 0.5 * (H + H.T)
 
     return hessian
 
