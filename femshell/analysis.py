@@ -43,6 +43,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .geometry import triangle_areas
+
 __all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeasures", "find_spots",
            "count_spots", "polar_profile", "PolarProfile", "azimuthal_spectrum", "count_wrinkles"]
 
@@ -70,15 +72,10 @@ def _field(values, n, name="values"):
     return v
 
 
-def _triangle_areas(pts, tri):
-    x = pts[tri]
-    return 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
-
-
 def vertex_areas(points, triangles) -> np.ndarray:
     """Lumped vertex areas, one third of the adjacent triangle areas (length²), shape (n,)."""
     pts, tri = _mesh(points, triangles)
-    return np.bincount(tri.ravel(), weights=np.repeat(_triangle_areas(pts, tri) / 3.0, 3), minlength=len(pts))
+    return np.bincount(tri.ravel(), weights=np.repeat(triangle_areas(pts, tri) / 3.0, 3), minlength=len(pts))
 
 
 def spot_radius(area_low: float, n_spots: int) -> float:
@@ -119,7 +116,7 @@ def _cut_triangles(pts, tri, f):
     """
     v = f[tri]                                   # (m, 3)
     x = pts[tri]                                 # (m, 3, 3)
-    area = _triangle_areas(pts, tri)
+    area = triangle_areas(pts, tri)
     pos = v > 0
     npos = pos.sum(axis=1)
     frac = np.where(npos == 3, 1.0, 0.0)
@@ -242,7 +239,7 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
     cv = _field(c, n, "c")
     if not math.isfinite(c_star):
         raise ValueError(f"c_star must be finite, got {c_star}")
-    tri_area = _triangle_areas(pts, tri)
+    tri_area = triangle_areas(pts, tri)
     area_total = float(tri_area.sum())
     if min_area is None:
         min_area = 2.0 * float(np.median(tri_area)) if len(tri) else 0.0

@@ -38,8 +38,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source",
-           "vertex_average", "triangle_areas", "ReactionDiffusion"]
+__all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion"]
 
 
 def _check_mesh(points, triangles):
@@ -72,12 +71,6 @@ def _check_areas(twice_area, e):
         f = int(np.flatnonzero(bad)[0])
         raise ValueError(f"{int(bad.sum())} degenerate (zero-area) triangle(s), first triangle {f} "
                          f"(area {twice_area[f] / 2:.3g}); the cotangent Laplacian is undefined there")
-
-
-def triangle_areas(points, triangles):
-    """Area of each triangle (length²), ½ |(p1 − p0) × (p2 − p0)|."""
-    pts, tri = _check_mesh(points, triangles)
-    return 0.5 * _edges_and_areas(pts, tri)[1]
 
 
 class P1Assembler:
@@ -212,33 +205,6 @@ def curvature_source(H, w: float = 15.0, Hs: float = 0.05):
     Hp = np.maximum(H, 0.0)
     # w Hp Hs / (Hs + Hp): same value, no inf/inf for huge H
     return w * Hs * (Hp / (Hs + Hp))
-
-
-def vertex_average(values_per_triangle, points, triangles):
-    r"""Area-weighted average of per-triangle values to the vertices.
-
-        v_i = Σ_{T ∋ i} |T| x_T / Σ_{T ∋ i} |T|
-
-    Same unit as the input. Vertices without triangles get 0.
-
-    Parameters
-    ----------
-    values_per_triangle : (m,) or (m, k) array
-    points : (n, 3) array
-    triangles : (m, 3) int array
-    """
-    pts, tri = _check_mesh(points, triangles)
-    x = np.asarray(values_per_triangle, dtype=float)
-    if x.shape[0] != len(tri):
-        raise ValueError(f"expected one value per triangle ({len(tri)}), got {x.shape[0]}")
-    _, twice_area = _edges_and_areas(pts, tri)
-    idx = tri.ravel()
-    weight = np.bincount(idx, weights=np.repeat(twice_area, 3), minlength=len(pts))
-    xw = (x.reshape(len(tri), -1) * twice_area[:, None])
-    num = np.stack([np.bincount(idx, weights=np.repeat(xw[:, j], 3), minlength=len(pts))
-                    for j in range(xw.shape[1])], axis=1)
-    out = np.divide(num, weight[:, None], out=np.zeros_like(num), where=weight[:, None] > 0)
-    return out.reshape((len(pts),) + x.shape[1:])
 
 
 class ReactionDiffusion:

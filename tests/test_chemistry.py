@@ -1,4 +1,4 @@
-"""femshell.chemistry: P1 surface matrices, source, vertex averages, reaction–diffusion stepper."""
+"""femshell.chemistry: P1 surface matrices, source, reaction–diffusion stepper."""
 
 import warnings
 
@@ -8,7 +8,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from femshell.chemistry import (P1Assembler, ReactionDiffusion, curvature_source, surface_mass_lumped,
-                                surface_stiffness, triangle_areas, vertex_average)
+                                surface_stiffness)
+from femshell.geometry import triangle_areas
 from femshell.solvers.linear import smallest_eigenvalues
 
 
@@ -84,19 +85,6 @@ def test_curvature_source():
     np.testing.assert_allclose(P[5], 15 * 0.05)              # saturates at w Hs, no inf/inf
     with pytest.raises(ValueError, match="Hs"):
         curvature_source(H, Hs=0.0)
-
-
-def test_vertex_average():
-    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2, 0, 0]])
-    tri = np.array([[0, 1, 2], [1, 3, 2], [1, 4, 3]])
-    area = triangle_areas(pts, tri)
-    v = vertex_average(np.array([1.0, 2.0, 4.0]), pts, tri)
-    np.testing.assert_allclose(v[0], 1.0)
-    np.testing.assert_allclose(v[1], (1 * area[0] + 2 * area[1] + 4 * area[2]) / area.sum())
-    np.testing.assert_allclose(v[2], (area[0] + 2 * area[1]) / (area[0] + area[1]))
-    np.testing.assert_allclose(vertex_average(np.full(3, 7.0), pts, tri), 7.0)
-    vv = vertex_average(np.column_stack([np.ones(3), np.array([1.0, 2.0, 4.0])]), pts, tri)
-    np.testing.assert_allclose(vv[:, 1], v)
 
 
 def test_degenerate_triangle_is_named():

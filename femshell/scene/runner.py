@@ -1247,7 +1247,7 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
     with rd.lock():
         if overwrite:
             rd.clear()
-        fio.atomic_write_text(rd.path / SCENE_FILE, f"# the scene as run by femshell (every default filled in)\n"
+        fio.atomic_write_text(rd.path / SCENE_FILE, "# the scene as run by femshell (every default filled in)\n"
                                                     + dump_toml(sc.data))
         if resume_from is None:
             head, _ = plan(sc, mesh)
