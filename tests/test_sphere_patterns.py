@@ -1,5 +1,6 @@
 """The sphere-patterns scenarios: parameters as design.md 1.5 states them, and a run stopped
-part-way resumes from its checkpoint to the same state as an uninterrupted run."""
+part-way resumes from its checkpoint to the same state as an uninterrupted run, and can be
+continued to a later end time."""
 
 import numpy as np
 import pytest
@@ -28,5 +29,7 @@ def test_interrupted_scenario_resumes_to_the_uninterrupted_state(tmp_path):
     assert rest["steps"] == whole["steps"] and rest["saddles"] == 0 and rest["negative_c"] == 0
     np.testing.assert_allclose(rest["c"], whole["c"], rtol=0, atol=1e-12)
     np.testing.assert_allclose(rest["points"], whole["points"], rtol=0, atol=1e-10)
+    later = run_scenario(SCENARIOS["spots"], checkpoint=ck, t_final=0.4, n_vertices=300, radius=10.0)
+    assert later["t"] == pytest.approx(0.4) and later["steps"] > rest["steps"]    # continued, not restarted
     with pytest.raises(ValueError, match="another run"):
-        run_scenario(SCENARIOS["spots"], checkpoint=ck, t_final=0.5, n_vertices=300, radius=10.0)
+        run_scenario(SCENARIOS["spots"], checkpoint=ck, t_final=0.5, n_vertices=300, radius=12.0)

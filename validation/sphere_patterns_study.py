@@ -85,7 +85,8 @@ def profile_plot(rec: dict, path: Path, title: str):
         ax2.axhline(pr["H_threshold"], color="r", lw=0.8, ls=":", label="H* (P(H*) = β c*)")
     ax2.set_yscale("symlog", linthresh=1e-3)
     ax2.set_ylabel("H (symlog)", color="r")
-    fig.legend(loc="center right", fontsize=7)
+    handles = ax.get_legend_handles_labels()[0] + ax2.get_legend_handles_labels()[0]
+    ax2.legend(handles, [h.get_label() for h in handles], loc="upper right", fontsize=7)
     ax.set_title(title, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

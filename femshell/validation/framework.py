@@ -28,6 +28,7 @@ CASES = {
     "disk-wrinkles": "disk_wrinkles",
     "wrinkle-scaling": "wrinkle_scaling",
     "sphere-patterns": "sphere_patterns",
+    "spot-scaling": "spot_scaling",
     "laplace-beltrami-sphere": "laplace_beltrami_sphere",
     "curvature": "curvature",
     "thin-shell-locking": "thin_shell_locking",

@@ -127,11 +127,12 @@ def model_of(scenario: Scenario, radius: float | None = None) -> Mechanochemical
 
 def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius: float | None = None,
                  checkpoint: Path | None = None, wall_time: float | None = None, max_steps: int | None = None,
-                 log=None) -> dict:
+                 seed: InitialSpot | None = None, log=None) -> dict:
     """Run one scenario to ``t_final`` (or stationarity, ``wall_time`` seconds, ``max_steps`` steps); a dict.
 
     With ``checkpoint`` (an .npz path) the run resumes from it when it exists and saves
-    to it every 10 steps and at the end.
+    to it every 10 steps and at the end. ``seed``: the initial spot (default design.md 1.4's,
+    amplitude c_max and width h).
     """
     R = radius or scenario.radius
     params = model_of(scenario, R)
@@ -139,14 +140,17 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
     t0 = time.perf_counter()
     mesh = sphere(radius=R, n_vertices=n_vertices)
     meta = {"scenario": scenario.name, "radius": R, "n_vertices": mesh.n_vertices, "t_final": t_final}
+    if seed is not None:
+        meta["seed"] = [seed.amplitude, seed.width]
     if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
         state, saved = load_checkpoint(checkpoint)
-        if {k: saved.get(k) for k in meta} != meta:
+        same = [k for k in meta if k != "t_final"]   # a run may be continued to a later end time
+        if {k: saved.get(k) for k in same} != {k: meta[k] for k in same}:
             raise ValueError(f"{checkpoint} belongs to another run ({saved}); remove it to start afresh")
         loop = CoupledLoop.from_state_dict(mesh, params, state, stepping, log=log)
         history = dict(saved.get("history", {}))
     else:
-        loop = CoupledLoop(mesh, params, stepping, c0=InitialSpot(), log=log)
+        loop = CoupledLoop(mesh, params, stepping, c0=seed or InitialSpot(), log=log)
         history = {}
     setup = time.perf_counter() - t0
     counters = {"negative_c": max(0.0, -float(loop.c.min())), "non_finite": 0, "saddles": 0, "steps": 0,
