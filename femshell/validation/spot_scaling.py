@@ -16,6 +16,10 @@ D = 1.5 (its large-spots scenario) the spot converges (radius 4.62 and 4.63 at 4
 vertices, t = 40), so the sweeps are made at D = 1.5, c* = 0.1 and the other parameters of design.md
 1.5; the full level repeats h = 2 on a finer mesh (``mesh_check``) to show it.
 
+The sphere has half the paper's radius (R = 15, where 4 000 vertices converge the spot), so the h
+sweep stops at h = 3 (R/h = 5); at h = 4 (R/h = 3.75, no longer a thin shell) the loop cut its time
+step to ~1e-4 after t ≈ 2.6, about a minute per step.
+
 The seed of design.md 1.4 has width d = h, which would tie the spot to the swept h through the
 initial condition. Here every state starts from the same seed, amplitude c_max and width
 ``SEED_WIDTH`` = 2 (the paper's h), and the full level runs h = 2 again from seeds of other widths
@@ -59,8 +63,8 @@ SEED_WIDTH = 2.0
 LEVELS = {
     "quick": {"radius": 7.5, "n_vertices": 400, "t_final": 1.0, "h": (2.0, 3.0), "h_uniform": (), "eps": (),
               "seed_check": (), "mesh_check": ()},
-    "full": {"radius": 15.0, "n_vertices": 4000, "t_final": 100.0, "h": (1.5, 2.0, 3.0, 4.0),
-             "h_uniform": (1.5, 2.0, 3.0, 4.0), "eps": (0.25, 0.5, 1.0), "seed_check": (1.0, 4.0),
+    "full": {"radius": 15.0, "n_vertices": 4000, "t_final": 100.0, "h": (1.5, 2.0, 2.5, 3.0),
+             "h_uniform": (1.5, 2.0, 2.5, 3.0), "eps": (0.25, 0.5, 1.0), "seed_check": (1.0, 4.0),
              "mesh_check": (6250,), "wall_time": 1800.0},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
@@ -180,11 +184,12 @@ def state_rows(key, r):
 
 def plot(rows, fig):
     """Spot radius against h (both thickness laws) and ε, with the paper's slopes; the seed and mesh checks
-    at h = 2 as crosses; c against the polar angle for the states of the h sweep."""
+    at h = 2 as crosses; c against the polar angle for the states of the h sweep; c seen from the seeded
+    pole for the state with the most spots."""
     states = _LAST.get("states", {})
     if not states:
         return
-    ax1, ax2, ax3 = fig.subplots(1, 3)
+    ax1, ax2, ax3, ax4 = fig.subplots(1, 4)
     for ax, var, style in ((ax1, "h", "o-"), (ax1, "h_uniform", "s--"), (ax2, "eps", "o-")):
         keys = [k for k in _LAST["sweeps"][var] if k in states and states[k]["measures"].n_spots]
         if not keys:
@@ -214,4 +219,13 @@ def plot(rows, fig):
     ax3.axhline(BASE["c_star"], color="k", lw=0.6, ls=":")
     ax3.set_xlabel("polar angle [deg]")
     ax3.set_ylabel("c (volume-conserving sweep)")
-    ax3.legend(fontsize=6)
+    if ax3.get_legend_handles_labels()[0]:
+        ax3.legend(fontsize=6)
+    key, r = max(states.items(), key=lambda kv: kv[1]["measures"].n_spots)
+    pts, tri = r["points"], r["triangles"]
+    x, y, z = (pts - pts.mean(axis=0)).T
+    upper = tri[np.all(z[tri] > 0, axis=1)]
+    ax4.tripcolor(x, y, upper, r["c"], shading="gouraud", cmap="viridis", vmin=0, vmax=r["c_max"])
+    ax4.set_aspect("equal")
+    ax4.set_axis_off()
+    ax4.set_title(f"c from the pole, t = {r['t']:.3g}, N_sp = {r['measures'].n_spots}\n{_key_text(key)}", fontsize=6)
