@@ -8,17 +8,22 @@ What is measured, and why at D = 1.5
 ------------------------------------
 Each state is a run of the coupled loop (:func:`.sphere_patterns.run_scenario`: stable
 equilibrium at every step, design.md 1.4) on a sphere of radius ``radius`` from one spot at the
-pole, to ``t_final`` or a stationary pattern (or ``wall_time`` seconds per state). In this continuum shell the seeded spot does not
-spread into a pattern (docs/sphere-patterns.md): the runs end with one spot, the seeded bulge.
-Without diffusion its size is set by the mesh (R = 15, c* = 0.1: spot radius 4.20 at 2 697
-vertices, 2.63 at 6 265), so an exponent fitted there would measure the mesh. With the paper's
-D = 1.5 (its large-spots scenario) the spot converges (radius 4.62 and 4.63 at 4 007 and 6 265
-vertices, t = 40), so the sweeps are made at D = 1.5, c* = 0.1 and the other parameters of design.md
-1.5; the full level repeats h = 2 on a finer mesh (``mesh_check``) to show it.
+pole, to ``t_final`` or a stationary pattern (or ``wall_time`` seconds per call). With
+volume-conserving thickness the seeded spot does not spread into a pattern (docs/sphere-patterns.md):
+the runs end with one spot, the seeded bulge. Without diffusion its size is set by the mesh
+(R = 15, c* = 0.1: spot radius 4.20 at 2 697 vertices, 2.63 at 6 265), so an exponent fitted there
+would measure the mesh. With the paper's D = 1.5 (its large-spots scenario) the spot converges
+(radius 4.62 and 4.63 at 4 007 and 6 265 vertices, t = 40; 4.62 and 4.63 at t = 100 and at the stationary end; 5.35 at 2 697), so the sweeps are
+made at D = 1.5, c* = 0.1 and the other parameters of design.md 1.5 on 4 000 vertices. That mesh
+sequence is `validation/sphere_patterns_study.py`'s ``large-spots`` (the same model and seed as this
+case's h = 2, ε = 0.5 state); ``mesh_check`` adds vertex counts to rerun that state here.
 
 The sphere has half the paper's radius (R = 15, where 4 000 vertices converge the spot), so the h
 sweep stops at h = 3 (R/h = 5); at h = 4 (R/h = 3.75, no longer a thin shell) the loop cut its time
-step to ~1e-4 after t ≈ 2.6, about a minute per step.
+step to ~1e-4 after t ≈ 2.6, about a minute per step. The ε sweep stops at 0.5: at ε = 0.75 and 1
+the loop's step collapsed (dt ≈ 7e-6 at t = 0.81 and ≈ 5e-8 at t = 0.17, a step cut at every step,
+30-60 s per step), which is how a fold of the quasi-static path, where the bulge would have to jump,
+looks to a loop that accepts only stable equilibria (our reading, not analysed further).
 
 The seed of design.md 1.4 has width d = h, which would tie the spot to the swept h through the
 initial condition. Here every state starts from the same seed, amplitude c_max and width
@@ -34,6 +39,12 @@ Fit: log ρ = a + p log x by least squares over the states of a sweep that have 
 residuals (needs three states or more). Reported against 1/2 and −1/4 with no tolerance (the
 paper's exponents are a claim about its spring network, ours is a measurement). Toleranced rows:
 the invariants of every run (c ≥ 0 and finite, no saddle accepted, the run did not fail).
+
+Measured (full level; table and reading in docs/sphere-patterns.md): spot radius 5.43, 4.63, 3.88, 3.01
+at h = 1.5, 2, 2.5, 3 (volume-conserving; exponent −0.83 ± 0.12 against +1/2); 4.97, 4.76, 4.63 at
+ε = 0.25, 0.375, 0.5 (−0.104 against −1/4); 4.43 / 5.26 from seed widths 1 / 4. With uniform
+thickness the spot spreads at h = 2 (11 spots, spacing 5.5, at t = 67) and 2.5 (3 spots at t = 63),
+not at h = 3 (one blister): the uniform sweep's radius exponent mixes these patterns.
 """
 
 from __future__ import annotations
@@ -64,8 +75,8 @@ LEVELS = {
     "quick": {"radius": 7.5, "n_vertices": 400, "t_final": 1.0, "h": (2.0, 3.0), "h_uniform": (), "eps": (),
               "seed_check": (), "mesh_check": ()},
     "full": {"radius": 15.0, "n_vertices": 4000, "t_final": 100.0, "h": (1.5, 2.0, 2.5, 3.0),
-             "h_uniform": (1.5, 2.0, 2.5, 3.0), "eps": (0.25, 0.5, 1.0), "seed_check": (1.0, 4.0),
-             "mesh_check": (6250,), "wall_time": 1800.0},
+             "h_uniform": (2.0, 2.5, 3.0), "eps": (0.25, 0.375, 0.5), "seed_check": (1.0, 4.0),
+             "mesh_check": (), "wall_time": 1800.0},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
 
@@ -190,6 +201,7 @@ def plot(rows, fig):
     if not states:
         return
     ax1, ax2, ax3, ax4 = fig.subplots(1, 4)
+    ticks = {}
     for ax, var, style in ((ax1, "h", "o-"), (ax1, "h_uniform", "s--"), (ax2, "eps", "o-")):
         keys = [k for k in _LAST["sweeps"][var] if k in states and states[k]["measures"].n_spots]
         if not keys:
@@ -200,13 +212,15 @@ def plot(rows, fig):
         ref = REFERENCE["eps" if var == "eps" else "h"]
         if var != "h_uniform":
             ax.loglog(x, y[0] * (x / x[0]) ** ref, "k:", lw=0.8, label=f"slope {ref:g}")
-        ax.set_xticks(x, [f"{v:g}" for v in x], minor=False)
-        ax.set_xticks([], minor=True)
+        ticks.setdefault(ax, set()).update(x.tolist())
     for i, k in enumerate(k for k in _LAST["checks"] if k in states and states[k]["measures"].n_spots):
         for ax, x in ((ax1, k[0]), (ax2, k[1])):
             ax.loglog([x], [states[k]["measures"].spot_radius], "x", color="tab:red",
                       label=None if i else "seed/mesh checks")
     for ax, xl in ((ax1, "h"), (ax2, "eps")):
+        xs = sorted(ticks.get(ax, ()))       # the sweep's values, not crowded decades (after every loglog call)
+        ax.set_xticks(xs, [f"{v:g}" for v in xs], minor=False)
+        ax.set_xticks([], minor=True)
         ax.set_xlabel(xl)
         ax.set_ylabel("spot radius")
         ax.grid(True, which="both", alpha=0.3)
@@ -228,4 +242,5 @@ def plot(rows, fig):
     ax4.tripcolor(x, y, upper, r["c"], shading="gouraud", cmap="viridis", vmin=0, vmax=r["c_max"])
     ax4.set_aspect("equal")
     ax4.set_axis_off()
-    ax4.set_title(f"c from the pole, t = {r['t']:.3g}, N_sp = {r['measures'].n_spots}\n{_key_text(key)}", fontsize=6)
+    ax4.set_title(f"c, t = {r['t']:.3g}, N_sp = {r['measures'].n_spots}\nh={key[0]:g} eps={key[1]:g} {key[2]}",
+                  fontsize=7)
