@@ -15,8 +15,9 @@ the runs end with one spot, the seeded bulge. Without diffusion its size is set 
 would measure the mesh. With the paper's D = 1.5 (its large-spots scenario) the spot converges
 (radius 4.62 and 4.63 at 4 007 and 6 265 vertices, t = 40; 4.62 and 4.63 at t = 100 and at the
 stationary end; 5.35 at 2 697), so the sweeps are made at D = 1.5, c* = 0.1 and the other
-parameters of design.md 1.5 on 4 000 vertices. That mesh sequence is `validation/sphere_patterns_study.py`'s ``large-spots`` (the same model and seed as this
-case's h = 2, ε = 0.5 state); ``mesh_check`` adds vertex counts to rerun that state here.
+parameters of design.md 1.5 on 4 000 vertices. That mesh sequence is
+`validation/sphere_patterns_study.py`'s ``large-spots`` (the same model and seed as this case's
+h = 2, ε = 0.5 state); ``mesh_check`` adds vertex counts to rerun that state here.
 
 The sphere has half the paper's radius (R = 15, where 4 000 vertices converge the spot), so the h
 sweep stops at h = 3 (R/h = 5); at h = 4 (R/h = 3.75, no longer a thin shell) the loop cut its time
