@@ -44,7 +44,7 @@ the invariants of every run (c ≥ 0 and finite, no saddle accepted, the run did
 Measured (full level; table and reading in docs/sphere-patterns.md): spot radius 5.43, 4.63, 3.88, 3.01
 at h = 1.5, 2, 2.5, 3 (volume-conserving; exponent −0.83 ± 0.12 against +1/2); 4.97, 4.76, 4.63 at
 ε = 0.25, 0.375, 0.5 (−0.104 against −1/4); 4.43 / 5.26 from seed widths 1 / 4. With uniform
-thickness the spot spreads at h = 2 (11 spots, spacing 5.5, at t = 67) and 2.5 (3 spots at t = 63),
+thickness the spot spreads at h = 2 (12 spots, spacing 5.1, at t = 100) and 2.5 (3 spots at t = 63),
 not at h = 3 (one blister): the uniform sweep's radius exponent mixes these patterns.
 """
 
