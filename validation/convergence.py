@@ -300,7 +300,7 @@ def conditioning_table(doc):
 
 
 def generated_markdown(results, images: Path, doc_path: Path):
-    lines = [BEGIN, "", "_Generated from: " + ", ".join(
+    lines = ["", "_Generated from: " + ", ".join(
         f"`{_rel(d['_file'])}` ({d['level']})" for d in results.values()) + "._", ""]
     lines += provenance_table(results)
     summary = []
@@ -411,7 +411,6 @@ def generated_markdown(results, images: Path, doc_path: Path):
     missing += [f"{case} (no JSON)" for case in CASES if case not in results]
     if missing:
         lines += ["## Missing", "", "Not at full level yet: " + ", ".join(missing) + ".", ""]
-    lines += [END]
     return "\n".join(lines)
 
 
@@ -453,14 +452,13 @@ def _replot(mod, rows, path, title):
 
 
 def write_doc(doc_path: Path, generated: str):
-    """Put ``generated`` (markers included) between the page's markers, atomically; a page
-    without them gets it appended (a missing page is created)."""
-    inner = generated.split(BEGIN + "\n", 1)[1].rsplit("\n" + END, 1)[0]
+    """Put ``generated`` between the page's markers, atomically; a page without them gets it
+    appended between new markers (a missing page is created)."""
     if doc_path.exists() and BEGIN in (text := doc_path.read_text()) and END in text:
-        replace_generated(doc_path, BEGIN, END, inner)
+        replace_generated(doc_path, BEGIN, END, generated)
     else:
         head = text.rstrip() + "\n\n" if doc_path.exists() else "# Accuracy and cost\n\n"
-        atomic_write_text(doc_path, head + generated + "\n")
+        atomic_write_text(doc_path, f"{head}{BEGIN}\n{generated}\n{END}\n")
 
 
 def main(argv=None):

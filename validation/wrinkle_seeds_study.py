@@ -41,7 +41,7 @@ def sample(h, eps, resolution, seed):
     n, rel = ws.rim_wavenumber(d, d.deflection(u))
     try:
         n_negative, why = int(d.n_negative(u, eps)), None
-    except LinearSolverError as exc:    # seen at h = 2: the Hessian's round-off asymmetry above factorize's check
+    except LinearSolverError as exc:    # seen at h = 2 before the element Hessians were symmetrised
         n_negative, why = None, f"stability not decided: {exc}"
     return {"h": h, "eps": eps, "resolution": resolution, "seed": seed, "n_vertices": d.n_vertices, "n": n,
             "rel": rel, "energy": float(d.model.energy(u)), "n_negative": n_negative, "error": why,

@@ -221,12 +221,7 @@ def scenario_rows(sc: Scenario, r: dict) -> list:
         Row(p + f"max c / c* (c* = {r['c_star']:g})", r["max_c"] / r["c_star"], n_vertices=nv, wall_s=wall),
         Row(p + "max H (relative to 1/R)", r["max_H"], n_vertices=nv, wall_s=wall),
         Row(p + "accepted steps", r["steps"], n_vertices=nv, wall_s=wall),
-        Row(p + "largest negative part of c (must be 0)", r["negative_c"], 0.0, 0.0, nv, wall),
-        Row(p + "steps with non-finite c or shape", r["non_finite"], 0.0, 0.0, nv, wall),
-        Row(p + "accepted steps whose equilibrium was a saddle", r["saddles"], 0.0, 0.0, nv, wall),
-        Row(p + f"run failed ({r['message'][:60]})" if r["status"] == "failed" else p + "run failed",
-            float(r["status"] == "failed"), 0.0, 0.0, nv, wall),
-    ]
+    ] + invariant_rows(r, lambda q: p + q)
     if m.n_spots:        # undefined without spots
         rows[3:3] = [Row(p + "spot radius sqrt(A_l/(pi N_sp))", m.spot_radius, n_vertices=nv, wall_s=wall),
                      Row(p + "spot spacing 2(sqrt(A/(pi N))-sqrt(A_l/(pi N)))", m.spacing, n_vertices=nv,
@@ -237,6 +232,29 @@ def scenario_rows(sc: Scenario, r: dict) -> list:
     return rows
 
 
+def invariant_rows(r: dict, label) -> list:
+    """The toleranced invariants of one run (c ≥ 0 and finite, no saddle accepted, not failed);
+    ``label(quantity)`` gives each row its name."""
+    nv, wall = r["n_vertices"], r["wall_s"]
+    failed = r["status"] == "failed"
+    return [Row(label("largest negative part of c (must be 0)"), r["negative_c"], 0.0, 0.0, nv, wall),
+            Row(label("steps with non-finite c or shape"), r["non_finite"], 0.0, 0.0, nv, wall),
+            Row(label("accepted steps whose equilibrium was a saddle"), r["saddles"], 0.0, 0.0, nv, wall),
+            Row(label(f"run failed ({r['message'][:60]})" if failed else "run failed"), float(failed), 0.0, 0.0,
+                nv, wall)]
+
+
+def draw_top_view(ax, r: dict, title: str):
+    """c on the upper hemisphere seen from the seeded pole (like the paper's figures), colours 0 … c_max."""
+    pts, tri = r["points"], r["triangles"]
+    x, y, z = (pts - pts.mean(axis=0)).T
+    top = tri[np.all(z[tri] > 0, axis=1)]
+    ax.tripcolor(x, y, top, r["c"], shading="gouraud", cmap="viridis", vmin=0, vmax=max(r["c_max"], 1e-12))
+    ax.set_aspect("equal")
+    ax.set_axis_off()
+    ax.set_title(title, fontsize=7)
+
+
 def plot(rows, fig):
     """Top view of c (upper hemisphere, like the paper's figures) and side view per scenario."""
     runs = list(_LAST.values())
@@ -245,16 +263,10 @@ def plot(rows, fig):
         return
     n = len(runs)
     for k, r in enumerate(runs):
-        pts, tri, c = r["points"], r["triangles"], r["c"]
+        pts, tri = r["points"], r["triangles"]
         ctr = pts.mean(axis=0)
         x, y, z = (pts - ctr).T
-        vmax = max(r["c_max"], 1e-12)
-        top = tri[np.all(z[tri] > 0, axis=1)]
-        ax = fig.add_subplot(3, n, k + 1)
-        ax.tripcolor(x, y, top, c, shading="gouraud", cmap="viridis", vmin=0, vmax=vmax)
-        ax.set_aspect("equal")
-        ax.set_axis_off()
-        ax.set_title(f"{r['scenario']}\nt={r['t']:.3g}, N_sp={r['measures'].n_spots}", fontsize=7)
+        draw_top_view(fig.add_subplot(3, n, k + 1), r, f"{r['scenario']}\nt={r['t']:.3g}, N_sp={r['measures'].n_spots}")
         front = tri[np.all(y[tri] < 0, axis=1)]
         ax = fig.add_subplot(3, n, n + k + 1)
         ax.tripcolor(x, z, front, np.linalg.norm(pts - ctr, axis=1) / r["rest_radius"], shading="gouraud",

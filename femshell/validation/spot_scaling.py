@@ -57,7 +57,7 @@ import numpy as np
 
 from ..coupled import CoupledError, InitialSpot
 from .framework import Row
-from .sphere_patterns import Scenario, run_scenario
+from .sphere_patterns import Scenario, draw_top_view, invariant_rows, run_scenario
 
 NAME = "spot-scaling"
 DESCRIPTION = ("spot radius (and spacing) of the sphere's mechanochemical spot against h (volume-conserving and "
@@ -186,12 +186,8 @@ def state_rows(key, r):
     if m.n_spots:
         rows += [Row("spot radius sqrt(A_l/(pi N_sp))" + at, m.spot_radius, None, None, nv, wall),
                  Row("spot spacing 2(sqrt(A/(pi N))-sqrt(A_l/(pi N)))" + at, m.spacing, None, None, nv, wall)]
-    rows += [Row(f"max c / c* (c* = {r['c_star']:g})" + at, r["max_c"] / r["c_star"], None, None, nv, wall),
-             Row("largest negative part of c (must be 0)" + at, r["negative_c"], 0.0, 0.0, nv, wall),
-             Row("steps with non-finite c or shape" + at, r["non_finite"], 0.0, 0.0, nv, wall),
-             Row("accepted steps whose equilibrium was a saddle" + at, r["saddles"], 0.0, 0.0, nv, wall),
-             Row("run failed" + at, float(r["status"] == "failed"), 0.0, 0.0, nv, wall)]
-    return rows
+    rows.append(Row(f"max c / c* (c* = {r['c_star']:g})" + at, r["max_c"] / r["c_star"], None, None, nv, wall))
+    return rows + invariant_rows(r, lambda q: q + at)
 
 
 def plot(rows, fig):
@@ -237,11 +233,4 @@ def plot(rows, fig):
     if ax3.get_legend_handles_labels()[0]:
         ax3.legend(fontsize=6)
     key, r = max(states.items(), key=lambda kv: kv[1]["measures"].n_spots)
-    pts, tri = r["points"], r["triangles"]
-    x, y, z = (pts - pts.mean(axis=0)).T
-    upper = tri[np.all(z[tri] > 0, axis=1)]
-    ax4.tripcolor(x, y, upper, r["c"], shading="gouraud", cmap="viridis", vmin=0, vmax=r["c_max"])
-    ax4.set_aspect("equal")
-    ax4.set_axis_off()
-    ax4.set_title(f"c, t = {r['t']:.3g}, N_sp = {r['measures'].n_spots}\nh={key[0]:g} eps={key[1]:g} {key[2]}",
-                  fontsize=7)
+    draw_top_view(ax4, r, f"c, t = {r['t']:.3g}, N_sp = {r['measures'].n_spots}\nh={key[0]:g} eps={key[1]:g} {key[2]}")
