@@ -111,3 +111,68 @@ def test_hessian_exactly_symmetric_on_distorted_elements():
     u = model.initial_unknowns() + 0.5 * np.random.default_rng(4).standard_normal(model.n_free)
     K = model.hessian(u)
     assert abs(K - K.T).max() == 0.0
+
+
+def test_neo_hookean_derivatives_and_split_hessian(square):
+    """The neo-Hookean law's gradient and Hessian against finite differences and jax.hessian."""
+    import jax
+
+    from femshell.shell import element as el
+
+    rng = np.random.default_rng(5)
+    rest = uniform_growth(square.points, square.triangles, thickness=0.1, strain=0.2, k0=0.7)
+    rest.metric[:, 0, 0] *= 1.1
+    model = ShellModel(square, Material(1.0, 0.35, law="neo-hookean"), rest, [Clamped("left")],
+                       remove_rigid_modes=False)
+    u = model.initial_unknowns() + 0.05 * rng.standard_normal(model.n_free)
+    _fd_check(model, u, rng)
+    q = model.full(u)
+    args = model._element_args(q)
+
+    def energy(*a):
+        return el.element_energy(*a, membrane=el.neo_hookean_membrane)
+
+    reference = np.asarray(jax.jit(jax.vmap(jax.hessian(energy), in_axes=el._AXES))(*args))
+    interior = (model.edge_kind_el == el.INTERIOR).all(axis=1)
+    H = np.asarray(el.kernels("neo-hookean").hessian_grouped(interior, *args))
+    assert np.all(np.abs(H - reference) <= 1e-12 * np.abs(reference).max(axis=(1, 2))[:, None, None])
+
+
+def test_neo_hookean_agrees_with_svk_to_second_order():
+    """ψ_NH − ψ_SVK = O(strain³): halving a random strain divides the difference by ~8."""
+    from femshell.shell import element as el
+
+    rng = np.random.default_rng(6)
+    G = rng.standard_normal((2, 2))
+    E0 = 0.5 * (G + G.T)
+    alpha, beta = 0.35 / (1 - 0.35**2), 1 / (2 * 1.35)
+    diffs = []
+    for t in (1e-2, 5e-3):
+        C = np.eye(2) + 2 * t * E0
+        svk = float(el.svk_membrane(C, alpha, beta))
+        assert svk == pytest.approx(alpha / 2 * np.trace(t * E0) ** 2 + beta * np.trace(t * E0 @ (t * E0)), rel=1e-12)
+        diffs.append(abs(float(el.neo_hookean_membrane(C, alpha, beta)) - svk) / svk)
+    assert diffs[1] == pytest.approx(diffs[0] / 2, rel=0.05)   # relative difference O(strain)
+
+
+@pytest.mark.parametrize("law, stable", [("svk", False), ("neo-hookean", True)])
+def test_compressed_membrane_ellipticity(law, stable):
+    """A flat sheet held at stretch 0.8 of its target (below SVK's equibiaxial limit √(3/4) = 0.866 at
+    ν = 0.5, disk_wrinkles.svk_ellipticity_stretch) with its positions fixed at the boundary: the
+    in-plane Hessian has negative eigenvalues for SVK (material instability, mesh-scale modes)
+    and none for neo-Hookean. Out-of-plane motion is pinned so only the membrane law is tested."""
+    from femshell.solvers.linear import factorize
+    from femshell.validation.disk_wrinkles import svk_ellipticity_stretch
+
+    assert 0.8 < svk_ellipticity_stretch(0.5)
+    mesh = plate(1.0, 1.0, edge_length=0.1)
+    rest = uniform_growth(mesh.points, mesh.triangles, thickness=0.01, strain=1 / 0.8 - 1, k0=0.0)
+    model = ShellModel(mesh, Material(1.0, 0.5, law=law), rest,
+                       [Clamped("left"), Clamped("right"), Clamped("top"), Clamped("bottom")],
+                       remove_rigid_modes=False)
+    K = model.hessian(model.initial_unknowns())
+    n = mesh.n_vertices
+    free_z = np.flatnonzero(model.free)
+    in_plane = np.flatnonzero((free_z < 3 * n) & (free_z % 3 != 2))   # x, y of free vertices only
+    n_negative = factorize(K[in_plane][:, in_plane].tocsc(), kind="symmetric_indefinite").inertia[1]
+    assert (n_negative == 0) == stable

@@ -37,6 +37,20 @@ radius R has :math:`b = a/R` (positive).
               + \frac{\bar h^3}{12} \|\bar a^{-1}(b - \bar b)\|^2\right],\quad
            \|M\|^2 = \frac{\alpha}{2} (\operatorname{tr} M)^2 + \beta \operatorname{tr}(M^2).
 
+**Membrane law** (:data:`MEMBRANE_LAWS`). design.md's St Venant–Kirchhoff term is
+:math:`\bar h\,\psi(C)` with :math:`C = \bar a^{-1} a`, :math:`\psi = \tfrac14 \|C - I\|^2`.
+It loses ellipticity under compression (equibiaxial stretch below
+:math:`\sqrt{(\alpha+\beta)/(\alpha+2\beta)}`, 0.866 at ν = 0.5): a confined region grown
+by more than that collapses into mesh-scale folds and inverted triangles. The optional
+compressible neo-Hookean law
+
+.. math::  \psi = \frac{\beta}{2}(\operatorname{tr} C - 2 - \ln\det C)
+           + \frac{\alpha}{4}(\det C - 1 - \ln\det C)
+
+is polyconvex (hence elliptic at every stretch), is infinite where a triangle degenerates,
+and agrees with St Venant–Kirchhoff to second order in the strain (same α, β at small
+strain). The bending term is the same for both.
+
 Exact gradients and Hessians come from JAX automatic differentiation of
 :func:`element_energy`, in float64, vectorised over all elements.
 
@@ -130,30 +144,48 @@ def norm2(M, alpha, beta):
     return 0.5 * alpha * tr * tr + beta * jnp.sum(M * M.T)
 
 
-def element_energy(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign):
+def svk_membrane(C, alpha, beta):
+    """ψ(C) = ¼ ‖C − I‖² (design.md 1.2), C = ā⁻¹a: energy per target area and thickness."""
+    return 0.25 * norm2(C - jnp.eye(2), alpha, beta)
+
+
+def neo_hookean_membrane(C, alpha, beta):
+    """ψ(C) = (β/2)(tr C − 2 − ln det C) + (α/4)(det C − 1 − ln det C) (module docstring).
+
+    Not finite where det C ≤ 0 (a degenerate triangle): Newton's line search rejects such steps.
+    """
+    det = C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]
+    log_det = jnp.log(det)
+    return 0.5 * beta * (C[0, 0] + C[1, 1] - 2.0 - log_det) + 0.25 * alpha * (det - 1.0 - log_det)
+
+
+MEMBRANE_LAWS = {"svk": svk_membrane, "neo-hookean": neo_hookean_membrane}
+
+
+def _membrane_and_bending(a, b, abar_inv, bbar, area, hbar, alpha, beta, membrane):
+    bend = abar_inv @ (b - bbar)
+    return (area * hbar * membrane(abar_inv @ a, alpha, beta),
+            area * hbar**3 / 12.0 * norm2(bend, alpha, beta))
+
+
+def element_membrane_bending(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign,
+                             membrane=svk_membrane):
+    """The membrane and bending parts of :func:`element_energy` separately (for output)."""
+    a, b = fundamental_forms(q[:9].reshape(3, 3), q[9:18].reshape(3, 3), q[18:], kind, direction, sign)
+    return _membrane_and_bending(a, b, abar_inv, bbar, area, hbar, alpha, beta, membrane)
+
+
+def element_energy(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign, membrane=svk_membrane):
     """Strain energy of one element.
 
     q : (21,) [x0, x1, x2, p0, p1, p2 (3 each), theta0, theta1, theta2];
     abar_inv, bbar : (2, 2) inverse target metric and target curvature;
-    area : target area; hbar : target thickness; alpha, beta : material constants.
+    area : target area; hbar : target thickness; alpha, beta : material constants;
+    membrane : ψ(C, alpha, beta), one of :data:`MEMBRANE_LAWS`.
     """
-    x = q[:9].reshape(3, 3)
-    p = q[9:18].reshape(3, 3)
-    a, b = fundamental_forms(x, p, q[18:], kind, direction, sign)
-    strain = abar_inv @ a - jnp.eye(2)
-    bend = abar_inv @ (b - bbar)
-    return area * (0.25 * hbar * norm2(strain, alpha, beta) + hbar**3 / 12.0 * norm2(bend, alpha, beta))
-
-
-def element_membrane_bending(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign):
-    """The membrane and bending parts of :func:`element_energy` separately (for output)."""
-    x = q[:9].reshape(3, 3)
-    p = q[9:18].reshape(3, 3)
-    a, b = fundamental_forms(x, p, q[18:], kind, direction, sign)
-    strain = abar_inv @ a - jnp.eye(2)
-    bend = abar_inv @ (b - bbar)
-    return (area * 0.25 * hbar * norm2(strain, alpha, beta),
-            area * hbar**3 / 12.0 * norm2(bend, alpha, beta))
+    mem, bend = element_membrane_bending(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign,
+                                         membrane)
+    return mem + bend
 
 
 _AXES = (0, 0, 0, 0, 0, None, None, 0, 0, 0)
@@ -227,13 +259,12 @@ def edge_q(y, k, kind, direction, sign):
     return (ne @ conormal) * (twice_area / length)
 
 
-def energy_of_forms(z, abar_inv, bbar, area, hbar, alpha, beta):
-    """:func:`element_energy` as a (quadratic) function of z = (a11, a12, a22, q0, q1, q2)."""
+def energy_of_forms(z, abar_inv, bbar, area, hbar, alpha, beta, membrane=svk_membrane):
+    """:func:`element_energy` as a function of z = (a11, a12, a22, q0, q1, q2) (quadratic for SVK)."""
     a = jnp.array([[z[0], z[1]], [z[1], z[2]]])
     b = 2.0 * jnp.array([[z[3] + z[4], z[3]], [z[3], z[3] + z[5]]])
-    strain = abar_inv @ a - jnp.eye(2)
-    bend = abar_inv @ (b - bbar)
-    return area * (0.25 * hbar * norm2(strain, alpha, beta) + hbar**3 / 12.0 * norm2(bend, alpha, beta))
+    mem, bend = _membrane_and_bending(a, b, abar_inv, bbar, area, hbar, alpha, beta, membrane)
+    return mem + bend
 
 
 # q_k is translation invariant: a function of r = (x1 - x0, x2 - x0, p_k - x0, theta_k) = T y (10 of 13)
@@ -253,7 +284,7 @@ _METRIC_HESS = np.stack([2 * np.outer(_D[0], _D[0]), np.outer(_D[0], _D[1]) + np
                          2 * np.outer(_D[1], _D[1])])
 
 
-def _split_hessian(interior):
+def _split_hessian(interior, membrane=svk_membrane):
     """The element Hessian by the split of the module docstring (``interior``: all edges interior)."""
 
     def hessian(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign):
@@ -275,7 +306,7 @@ def _split_hessian(interior):
             rows.append(row.at[18 + k].set(gk[12]))
             hess.append(hk)
         z, J = jnp.stack(z), jnp.stack(rows)  # (6,), (6, 21)
-        forms = (abar_inv, bbar, area, hbar, alpha, beta)
+        forms = (abar_inv, bbar, area, hbar, alpha, beta, membrane)
         dw = jax.grad(energy_of_forms)(z, *forms)
         H = J.T @ jax.hessian(energy_of_forms)(z, *forms) @ J
         hxx = jnp.kron(jnp.einsum("i,iab->ab", dw[:3], _METRIC_HESS), jnp.eye(3))
@@ -298,28 +329,64 @@ def _split_hessian(interior):
 element_hessian = _split_hessian(interior=False)
 element_hessian_interior = _split_hessian(interior=True)
 
-batch_energy = _batched(element_energy)
-batch_value_and_grad = _batched(jax.value_and_grad(element_energy))
-batch_hessian = _batched(element_hessian, CHUNK_HESSIAN, CHUNK_HESSIAN)
-batch_hessian_interior = _batched(element_hessian_interior, CHUNK_HESSIAN, CHUNK_HESSIAN)
+
+class Kernels:
+    """The batched energy, gradient, Hessian and parts of one membrane law (compiled on first use).
+
+    >>> k = kernels("neo-hookean")     # doctest: +SKIP
+    >>> k.energy(*args)                # (m,) element energies, args as for batch_energy
+    """
+
+    def __init__(self, law: str):
+        if law not in MEMBRANE_LAWS:
+            raise ValueError(f"membrane law must be one of {tuple(MEMBRANE_LAWS)}, got {law!r}")
+        membrane = MEMBRANE_LAWS[law]
+
+        def energy(*args):
+            return element_energy(*args, membrane=membrane)
+
+        def parts(*args):
+            return element_membrane_bending(*args, membrane=membrane)
+
+        self.law = law
+        self.energy = _batched(energy)
+        self.value_and_grad = _batched(jax.value_and_grad(energy))
+        self.parts = _batched(parts)
+        self.hessian = _batched(_split_hessian(False, membrane), CHUNK_HESSIAN, CHUNK_HESSIAN)
+        self.hessian_interior = _batched(_split_hessian(True, membrane), CHUNK_HESSIAN, CHUNK_HESSIAN)
+
+    def hessian_grouped(self, interior, q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign):
+        """:attr:`hessian`, with the elements flagged in ``interior`` (all three edges
+        interior) through the kernel without boundary branches; same result."""
+        args = [q, abar_inv, bbar, area, hbar, kind, direction, sign]
+        if interior.all():
+            return self.hessian_interior(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign)
+        if not interior.any():
+            return self.hessian(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign)
+        out = np.empty((len(q), 21, 21))
+        for mask, fn in ((interior, self.hessian_interior), (~interior, self.hessian)):
+            a = [np.asarray(v)[mask] for v in args]
+            out[mask] = fn(a[0], a[1], a[2], a[3], a[4], alpha, beta, a[5], a[6], a[7])
+        return out
 
 
-def batch_hessian_grouped(interior, q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign):
-    """:data:`batch_hessian`, with the elements flagged in ``interior`` (all three edges
-    interior) through the kernel without boundary branches; same result."""
-    args = [q, abar_inv, bbar, area, hbar, kind, direction, sign]
-    if interior.all():
-        return batch_hessian_interior(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign)
-    if not interior.any():
-        return batch_hessian(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign)
-    out = np.empty((len(q), 21, 21))
-    for mask, fn in ((interior, batch_hessian_interior), (~interior, batch_hessian)):
-        a = [np.asarray(v)[mask] for v in args]
-        out[mask] = fn(a[0], a[1], a[2], a[3], a[4], alpha, beta, a[5], a[6], a[7])
-    return out
+_KERNELS = {}
 
 
-batch_parts = _batched(element_membrane_bending)
+def kernels(law: str = "svk") -> Kernels:
+    """The :class:`Kernels` of a membrane law, built once per process."""
+    if law not in _KERNELS:
+        _KERNELS[law] = Kernels(law)
+    return _KERNELS[law]
+
+
+_SVK = kernels("svk")
+batch_energy = _SVK.energy
+batch_value_and_grad = _SVK.value_and_grad
+batch_hessian = _SVK.hessian
+batch_hessian_interior = _SVK.hessian_interior
+batch_hessian_grouped = _SVK.hessian_grouped
+batch_parts = _SVK.parts
 
 
 def _forms(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign):

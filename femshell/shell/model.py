@@ -33,16 +33,23 @@ from .rest_state import RestState
 
 @dataclass(frozen=True)
 class Material:
-    """Isotropic St Venant–Kirchhoff material: Young's modulus E (energy unit), Poisson ratio nu."""
+    """Isotropic material: Young's modulus E (energy unit), Poisson ratio nu and the membrane law.
+
+    law : "svk" (St Venant–Kirchhoff, design.md 1.2) or "neo-hookean" (the same at small
+    strain, elliptic under any compression; :mod:`femshell.shell.element`).
+    """
 
     E: float = 1.0
     nu: float = 0.3
+    law: str = "svk"
 
     def __post_init__(self):
         if not (np.isfinite(self.E) and self.E > 0):
             raise ValueError(f"Young's modulus E must be > 0, got {self.E}")
         if not (-1.0 < self.nu <= 0.5):
             raise ValueError(f"Poisson ratio nu must be in (-1, 0.5], got {self.nu}")
+        if self.law not in el.MEMBRANE_LAWS:
+            raise ValueError(f"membrane law must be one of {tuple(el.MEMBRANE_LAWS)}, got {self.law!r}")
 
     @property
     def alpha(self) -> float:
@@ -53,6 +60,45 @@ class Material:
     def beta(self) -> float:
         """β = E / (2 (1 + ν))."""
         return self.E / (2.0 * (1.0 + self.nu))
+
+    def ellipticity_margin(self, C) -> np.ndarray:
+        r"""Smallest in-plane acoustic eigenvalue of the membrane law at C = ā⁻¹a, over β (per element).
+
+        Negative where the membrane is not elliptic: a plane wave of in-plane displacement
+        a e^{i k n·x} lowers the energy for some a, n at every wavelength, the mesh scale first.
+        For St Venant–Kirchhoff with principal stretches λ1, λ2 (C's eigenvalues λ²) and
+        F = diag(λ1, λ2) the acoustic tensor is
+
+        .. math:: A(n) = (\alpha + \beta) (F n)(F n)^T + \beta F^2
+                  + \big(\tfrac{\alpha}{2}(\lambda_1^2 + \lambda_2^2 - 2) + \beta\, n^T (F^2 - I) n\big) I,
+
+        minimised here over 91 directions n in a quarter turn (the law is isotropic). Under
+        equibiaxial compression it changes sign at λ² = (α + β)/(α + 2β). The neo-Hookean law
+        is polyconvex, hence elliptic at every stretch: +inf. (Out-of-plane waves, wrinkles,
+        are the bending term's business and are not counted.)
+
+        >>> float(Material(nu=0.5).ellipticity_margin(np.eye(2)[None] * 0.7)[0]) < 0     # λ = 0.84
+        True
+        """
+        C = np.asarray(C, dtype=float).reshape(-1, 2, 2)
+        if self.law != "svk":
+            return np.full(len(C), np.inf)
+        # C = ā⁻¹a is not symmetric, but its eigenvalues (λ², of a v = λ² ā v) are real and positive
+        tr, det = C[:, 0, 0] + C[:, 1, 1], C[:, 0, 0] * C[:, 1, 1] - C[:, 0, 1] * C[:, 1, 0]
+        root = np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+        lam2 = np.stack([0.5 * tr - root, 0.5 * tr + root], axis=1)
+        F = np.sqrt(np.clip(lam2, 0.0, None))
+        al, be = self.alpha, self.beta
+        phi = np.linspace(0.0, 0.5 * np.pi, 91)
+        n = np.stack([np.cos(phi), np.sin(phi)], axis=1)                        # (d, 2)
+        Fn = F[:, None, :] * n[None]                                            # (m, d, 2)
+        shift = 0.5 * al * (lam2.sum(axis=1) - 2.0)[:, None] + be * (n[None] ** 2 * (lam2[:, None] - 1.0)).sum(-1)
+        A = (al + be) * Fn[..., :, None] * Fn[..., None, :]
+        A = A + be * (lam2[:, None, :, None] * np.eye(2)) + shift[..., None, None] * np.eye(2)
+        tr = A[..., 0, 0] + A[..., 1, 1]
+        det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
+        smallest = 0.5 * tr - np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+        return smallest.min(axis=1) / be
 
     def bending_stiffness(self, h: float) -> float:
         """B = E h³ / (12 (1 − ν²))."""
@@ -176,17 +222,21 @@ class ShellModel:
         self.q_fixed[idx] = values
 
     # ---- energy and derivatives -----------------------------------------------------------------
+    @property
+    def _kernels(self) -> el.Kernels:
+        return el.kernels(self.material.law)
+
     def _element_args(self, q):
         mat = self.material
         return (q[self.element_dofs], self._abar_inv, self._bbar, self._area, self._hbar,
                 mat.alpha, mat.beta, self.edge_kind_el, self.edge_direction_el, self.face_edge_sign)
 
     def strain_energy(self, u) -> float:
-        return float(np.sum(el.batch_energy(*self._element_args(self.full(u)))))
+        return float(np.sum(self._kernels.energy(*self._element_args(self.full(u)))))
 
     def energy_parts(self, u):
         """Membrane and bending energy per element, two (m,) arrays."""
-        mem, bend = el.batch_parts(*self._element_args(self.full(u)))
+        mem, bend = self._kernels.parts(*self._element_args(self.full(u)))
         return np.asarray(mem), np.asarray(bend)
 
     def external_work(self, u) -> float:
@@ -203,7 +253,7 @@ class ShellModel:
     def gradient(self, u) -> np.ndarray:
         """∂Π/∂u over the free unknowns."""
         q = self.full(u)
-        _, g = el.batch_value_and_grad(*self._element_args(q))
+        _, g = self._kernels.value_and_grad(*self._element_args(q))
         r = self.assembler.vector(np.asarray(g))
         if self.loads:
             r -= self.load_factor * self.load_gradient(u)
@@ -218,7 +268,7 @@ class ShellModel:
         """∂²Π/∂u² as a CSR matrix over the free unknowns (symmetric, possibly indefinite)."""
         q = self.full(u)
         interior = (self.edge_kind_el == el.INTERIOR).all(axis=1)  # these skip the boundary branches
-        K = self.assembler.matrix(np.asarray(el.batch_hessian_grouped(interior, *self._element_args(q))))
+        K = self.assembler.matrix(np.asarray(self._kernels.hessian_grouped(interior, *self._element_args(q))))
         for i, load in enumerate(self.loads):
             blocks = load.hessian_blocks(q)
             if blocks is None:
@@ -244,6 +294,12 @@ class ShellModel:
         """
         a, b = self.fundamental_forms(self.initial_unknowns() if u is None else u)
         return RestState(a, b, self.rest.thickness if thickness is None else thickness)
+
+    def membrane_ellipticity(self, u) -> np.ndarray:
+        """:meth:`Material.ellipticity_margin` of every element at state u, C = ā⁻¹a (negative where
+        the membrane law is not elliptic: results there depend on the mesh)."""
+        a, _ = self.fundamental_forms(u)
+        return self.material.ellipticity_margin(np.linalg.solve(self.rest.metric, np.asarray(a)))
 
     def fundamental_forms(self, u):
         """Current first and second fundamental forms per element, (m,2,2) each."""
