@@ -77,7 +77,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
@@ -145,6 +145,8 @@ class MechanochemicalModel:
     w : production rate (concentration·length/time, ≥ 0); Hs : saturation curvature (1/length, > 0).
     beta : degradation rate (1/time, ≥ 0); D : diffusion coefficient (length²/time, ≥ 0).
     rest_curvature : "mesh" (default) or "k0", see the module docstring.
+    membrane_law : "svk" (design.md 1.2) or "neo-hookean", which stays stable where a confined
+        spot is compressed below 0.866 of its target length (:mod:`femshell.shell.element`).
     """
 
     nu: float = 0.5
@@ -163,6 +165,7 @@ class MechanochemicalModel:
     beta: float = 1.0
     D: float = 0.0
     rest_curvature: str = "mesh"
+    membrane_law: str = "svk"
 
     def __post_init__(self):
         _finite("nu (Poisson ratio)", self.nu, -1.0, 0.5, lo_open=True, text="(-1, 0.5]")
@@ -188,6 +191,7 @@ class MechanochemicalModel:
         _finite("Hs (saturation curvature)", self.Hs, 0.0, lo_open=True, text="(0, inf)")
         _finite("beta (degradation rate)", self.beta, 0.0)
         _finite("D (diffusion coefficient)", self.D, 0.0)
+        Material(self.E, self.nu, self.membrane_law)    # checks the law
         if self.rest_curvature not in REST_CURVATURES:
             raise ValueError(f"rest_curvature must be one of {REST_CURVATURES}, got {self.rest_curvature!r}")
 
@@ -201,7 +205,7 @@ class MechanochemicalModel:
 
     @property
     def material(self) -> Material:
-        return Material(E=self.E, nu=self.nu)
+        return Material(E=self.E, nu=self.nu, law=self.membrane_law)
 
     @property
     def reference_contractility(self) -> float:
@@ -383,6 +387,13 @@ class TimeStepping:
     predictor : start Newton from the secant prediction u + (h/h_prev)(u − u_prev) when
         it has lower energy than u (a grown rest state leaves the old shape compressed,
         near buckling, where Newton from the old shape needs many iterations).
+    snap_ds, snap_max_iter : a fold of the quasi-static path. When Newton runs out of
+        iterations on a step whose Δs ≤ ``snap_ds``, no equilibrium is left near the old
+        shape (a tiny growth increment would otherwise converge in a few iterations): the
+        minimisation goes on from Newton's last iterate (lower energy than the start) for
+        up to ``snap_max_iter`` more iterations, and the shell snaps to the stable
+        equilibrium it reaches. Without this the loop creeps towards the fold with ever
+        smaller steps. ``snap_max_iter = 0`` disables it.
     max_steps : stop after this many accepted steps in one call of :meth:`CoupledLoop.run`.
     """
 
@@ -403,6 +414,8 @@ class TimeStepping:
     newton_backend: str = "auto"
     ramp_ds: float = 0.1
     predictor: bool = True
+    snap_ds: float = 1e-3
+    snap_max_iter: int = 400
     max_steps: int | None = None
 
     def __post_init__(self):
@@ -425,6 +438,9 @@ class TimeStepping:
         if int(self.newton_max_iter) != self.newton_max_iter or self.newton_max_iter < 1:
             raise ValueError(f"newton_max_iter must be an integer >= 1, got {self.newton_max_iter!r}")
         _finite("ramp_ds", self.ramp_ds, 0.0, lo_open=True, text="(0, inf)")
+        _finite("snap_ds", self.snap_ds, 0.0)
+        if int(self.snap_max_iter) != self.snap_max_iter or self.snap_max_iter < 0:
+            raise ValueError(f"snap_max_iter must be an integer >= 0, got {self.snap_max_iter!r}")
         if self.max_steps is not None and (int(self.max_steps) != self.max_steps or self.max_steps < 0):
             raise ValueError(f"max_steps must be None or an integer >= 0, got {self.max_steps!r}")
 
@@ -442,7 +458,8 @@ class StepRecord:
     |Δs| of the step; energy : elastic energy (E·length³); n_spots : N_sp (regions
     with c > c*); rate_c, rate_x : the stationarity measures (TimeStepping);
     stable : the Hessian at the equilibrium had no negative eigenvalue; wall_s :
-    wall time of the step (s).
+    wall time of the step (s); snapped : the shell jumped to another equilibrium past a
+    fold of the quasi-static path (``TimeStepping.snap_ds``).
     """
 
     step: int
@@ -461,6 +478,7 @@ class StepRecord:
     rate_x: float
     stable: bool | None
     wall_s: float
+    snapped: bool = False
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -554,6 +572,7 @@ class CoupledLoop:
         self.u = self.shell.initial_unknowns()
         self.stationary_count = 0
         self.n_rejected = 0
+        self.n_snaps = 0
         self.newton_total = 0
         self.last_newton_iterations = 0
         self._last_ds = 0.0
@@ -586,10 +605,32 @@ class CoupledLoop:
             unit = self.params.E * self.params.h0 * math.sqrt(float(np.sum(self.shell.rest.area)))
         return self.stepping.newton_atol_strain * unit
 
-    def _newton(self, u_start):
+    def _newton(self, u_start, max_iter=None, residual_scale=None):
         st = self.stepping
         return minimize(self.shell, u_start, stable=True, rtol=st.newton_rtol, atol=self._atol,
-                        max_iter=int(st.newton_max_iter), backend=st.newton_backend, log=None)
+                        max_iter=int(max_iter or st.newton_max_iter), residual_scale=residual_scale,
+                        backend=st.newton_backend, log=None)
+
+    def _snap(self, failed: NewtonError, ds: float):
+        """The stable equilibrium past a fold (``TimeStepping.snap_ds``), or None where this does not apply.
+
+        Newton's last iterate has a lower energy than the old shape; the minimisation goes
+        on from there with the residual scale of the original start, so the tolerance is the
+        one the step would have had.
+        """
+        st = self.stepping
+        last = failed.result
+        if (st.snap_max_iter == 0 or ds > st.snap_ds or last is None or last.iterations < st.newton_max_iter
+                or not np.all(np.isfinite(last.u))):
+            return None
+        self._say(f"  step {self.step + 1} t = {self.t:.6g}: no equilibrium near the old shape at Δs = {ds:.3g} "
+                  f"(a fold): minimising on for up to {st.snap_max_iter} iterations")
+        try:
+            res = self._newton(last.u, max_iter=st.snap_max_iter, residual_scale=last.residual_scale)
+        except NewtonError as exc:
+            self._say(f"  step {self.step + 1}: the snap did not settle: {exc}")
+            return None
+        return replace(res, iterations=last.iterations + res.iterations)
 
     def _predict(self, u, u_prev, ratio):
         """Secant predictor u + ratio (u − u_prev) for the current rest state, if it lowers the energy.
@@ -696,6 +737,7 @@ class CoupledLoop:
         dt = float(self.dt)
         cuts = 0
         reason = ""
+        snapped = False
         while True:
             remaining = st.t_final - self.t
             last = dt >= remaining * (1 - 1e-12)
@@ -727,10 +769,13 @@ class CoupledLoop:
                     start = self._predict(self.u, self._u_prev, h / self._h_prev)
                 try:
                     res = self._newton(start)
-                    if not (np.all(np.isfinite(res.u)) and math.isfinite(res.energy)):
-                        ok, reason = False, "Newton returned a non-finite state"
                 except NewtonError as exc:
-                    ok, reason = False, f"Newton failed: {exc}"
+                    res = self._snap(exc, ds)
+                    snapped = res is not None
+                    if not snapped:
+                        ok, reason = False, f"Newton failed: {exc}"
+                if ok and not (np.all(np.isfinite(res.u)) and math.isfinite(res.energy)):
+                    ok, reason = False, "Newton returned a non-finite state"
                 if not ok:
                     self.growth.apply(self.s)           # back to the accepted rest state
             if ok:
@@ -750,7 +795,9 @@ class CoupledLoop:
         x_old = points
         c_old = self.c
         self.c = c_new
-        self._u_prev, self._h_prev = self.u, h
+        # a snap is no trend: the secant through it would predict a second jump
+        self._u_prev, self._h_prev = (None, 0.0) if snapped else (self.u, h)
+        self.n_snaps += int(snapped)
         self.u = res.u
         self.s = s_new
         self.t = st.t_final if last else self.t + h
@@ -775,13 +822,13 @@ class CoupledLoop:
         if cuts:
             nxt = min(nxt, h)
         self.dt = float(min(st.dt_max, max(st.dt_min, nxt)))
-        rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0)
+        rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
         self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
                   f"cuts {cuts} max c {rec.max_c:.4g} max H {rec.max_H:.4g} ds {ds:.3g} "
-                  f"spots {rec.n_spots} {rec.wall_s:.2f}s")
+                  f"spots {rec.n_spots} {rec.wall_s:.2f}s{' snapped' if snapped else ''}")
         return rec
 
-    def record(self, dt: float = 0.0, cuts: int = 0, wall_s: float = 0.0) -> StepRecord:
+    def record(self, dt: float = 0.0, cuts: int = 0, wall_s: float = 0.0, snapped: bool = False) -> StepRecord:
         """The :class:`StepRecord` of the current state."""
         from .analysis import count_spots
 
@@ -793,7 +840,8 @@ class CoupledLoop:
                           max_H=float(self.H_vertex.max()), min_H=float(self.H_vertex.min()),
                           max_s=float(self.s.max()), ds=float(self._last_ds), energy=float(self.energy),
                           n_spots=int(n_spots), rate_c=float(self._last_rates[0]),
-                          rate_x=float(self._last_rates[1]), stable=self._last_stable, wall_s=float(wall_s))
+                          rate_x=float(self._last_rates[1]), stable=self._last_stable, wall_s=float(wall_s),
+                          snapped=bool(snapped))
 
     # ---- loops --------------------------------------------------------------------------------
     def iterate(self, max_steps: int | None = None):
@@ -865,13 +913,14 @@ class CoupledLoop:
 
         Keys: version, t, dt, step, c (n,), u (free unknowns), u_prev and h_prev (the
         previous accepted state and step, for the secant predictor; u_prev empty at
-        step 0), stationary_count, n_rejected, newton_total, last_newton_iterations,
+        step 0), stationary_count, n_rejected, n_snaps, newton_total, last_newton_iterations,
         last_ds, n_vertices, n_free.
         Store with :func:`femshell.io.save_checkpoint`; parameters go in its meta.
         """
         return {"version": STATE_VERSION, "t": float(self.t), "dt": float(self.dt), "step": int(self.step),
                 "c": self.c.copy(), "u": np.asarray(self.u, float).copy(),
                 "stationary_count": int(self.stationary_count), "n_rejected": int(self.n_rejected),
+                "n_snaps": int(self.n_snaps),
                 "newton_total": int(self.newton_total), "last_newton_iterations": int(self.last_newton_iterations),
                 "last_ds": float(self._last_ds), "n_vertices": int(self.mesh.n_vertices),
                 "u_prev": (np.zeros(0) if self._u_prev is None else np.asarray(self._u_prev, float).copy()),
@@ -902,6 +951,7 @@ class CoupledLoop:
         self.u = u
         self.stationary_count = int(state.get("stationary_count", 0))
         self.n_rejected = int(state.get("n_rejected", 0))
+        self.n_snaps = int(state.get("n_snaps", 0))
         self.newton_total = int(state.get("newton_total", 0))
         self.last_newton_iterations = int(state.get("last_newton_iterations", 0))
         self._last_ds = float(state.get("last_ds", 0.0))

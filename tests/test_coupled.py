@@ -207,6 +207,26 @@ def test_a_step_that_cannot_be_made_keeps_the_last_state(ball, spot_run):
         lp.advance()
 
 
+def test_snap_minimises_on_to_the_equilibrium_newton_ran_out_of_iterations_for(ball, spot_run):
+    """A fold looks to the loop like Newton running out of iterations at a small Δs. Forced here with a
+    budget of one iteration: the snap goes on minimising from Newton's last iterate and lands on the
+    equilibrium a normal budget finds; without it (snap_max_iter = 0) the step cannot be made."""
+    p, st, loop, initial, states, records = spot_run
+    assert records[2].newton_iterations > 1                  # one iteration is not enough for step 3
+    tight = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_ds=1.0, max_cuts=0)
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], tight)
+    rec = lp.advance()
+    assert rec.snapped and lp.n_snaps == 1 and rec.stable and rec.dt == records[2].dt
+    assert np.abs(lp.points - loop.points).max() <= 1e-9 * R
+    assert lp._u_prev is None                                # no secant predictor through a jump
+    never = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_max_iter=0, max_cuts=0)
+    with pytest.raises(CoupledError, match="Newton did not converge"):
+        CoupledLoop.from_state_dict(ball, p, states[2], never).advance()
+    small = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_ds=1e-9, max_cuts=0)
+    with pytest.raises(CoupledError, match="Newton did not converge"):       # Δs above snap_ds: a plain failure
+        CoupledLoop.from_state_dict(ball, p, states[2], small).advance()
+
+
 def test_steep_switch_strong_source_fast_diffusion_adapts(ball):
     # b = 1000: s jumps across c* within 0.001; w = 1000: c_max = 50; D = 100; dt starts at 1
     p = MechanochemicalModel(h0=H0, radius=R, lam_min=14.25, b=1000.0, w=1000.0, D=100.0)

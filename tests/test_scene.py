@@ -114,6 +114,7 @@ def test_out_of_range_names_key_and_range(tmp_path, errors_of):
     ("[output]\nfields = [\"c\", \"Lamda\"]\n", "unknown field 'Lamda'; did you mean 'Lambda'?"),
     ("[[boundary]]\ntype = \"clamped\"\ncurve = \"outer\"\n", "a sphere mesh is closed and has no boundary curve"),
     ("[[loads]]\ntype = \"dead_pressure\"\npressure = 1.0\n", "not supported by the time loop"),
+    ("[material]\nlaw = \"neohookean\"\n", 'is not one of "svk", "neo-hookean"; did you mean "neo-hookean"?'),
 ])
 def test_each_error_is_one_clear_line(tmp_path, errors_of, extra, expected):
     errs = errors_of(tmp_path, SPHERE + extra)
@@ -299,3 +300,12 @@ def test_mesh_file_scene_and_its_curves(tmp_path):
     p = write(tmp_path, text.replace('curve = "left"', 'curve = "west"'))
     with pytest.raises(SceneError, match=r"curve = \"west\" is not a boundary curve of p.vtu \(curves: "):
         make_mesh(load_scene(str(p)))
+
+
+def test_membrane_law_reaches_the_shell(tmp_path):
+    from femshell.scene.build import coupled_parameters
+
+    params, _, _ = coupled_parameters(load_scene(write(tmp_path, SPHERE + "[material]\nlaw = \"neo-hookean\"\n")))
+    assert params.material.law == "neo-hookean"
+    params, _, _ = coupled_parameters(load_scene(write(tmp_path, SPHERE)))
+    assert params.material.law == "svk"                      # design.md 1.2 by default

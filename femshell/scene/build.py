@@ -252,7 +252,7 @@ class ShellParts:
         self.bcs = boundary_conditions(scene, mesh)
         self.loads = make_loads(scene, mesh)
         try:
-            self.model = ShellModel(mesh, Material(E=mat["E"], nu=mat["nu"]),
+            self.model = ShellModel(mesh, Material(E=mat["E"], nu=mat["nu"], law=mat["law"]),
                                     flat_rest_state(mesh.points, mesh.triangles, self.h0), self.bcs, self.loads)
         except ValueError as exc:
             raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
@@ -301,7 +301,7 @@ def coupled_parameters(scene: Scene):
     k0 = sh["natural_curvature"]
     try:
         params = MechanochemicalModel(
-            nu=mat["nu"], E=mat["E"], h0=sh["thickness"], thickness_mode=sh["thickness_mode"],
+            nu=mat["nu"], E=mat["E"], membrane_law=mat["law"], h0=sh["thickness"], thickness_mode=sh["thickness_mode"],
             k0=None if k0 == "mesh" else float(k0), lam_max=gr["lam_max"], lam_min=gr["lam_min"],
             lam0=gr["lam0"], b=gr["b"], c_star=gr["c_star"], w=ch["w"], Hs=ch["Hs"], beta=ch["beta"], D=ch["D"],
             rest_curvature="mesh" if k0 == "mesh" else "k0")
@@ -309,7 +309,7 @@ def coupled_parameters(scene: Scene):
         raise SceneError(f"{scene.label}: [growth]/[chemistry]: {exc}") from None
     kw = {k: so[k] for k in ("t_final", "dt_initial", "dt_min", "dt_max", "ds_max", "grow", "safety", "max_cuts",
                              "stationary_rate_c", "stationary_rate_x", "stationary_steps", "newton_atol_strain",
-                             "ramp_ds", "max_steps")}
+                             "ramp_ds", "snap_ds", "snap_max_iter", "max_steps")}
     if so.get("newton_rtol") is not None:
         kw["newton_rtol"] = so["newton_rtol"]
     if so.get("newton_max_iter") is not None:

@@ -541,6 +541,7 @@ class TimeRunner(BaseRunner):
         return {"t": lp.t, "max_c": float(lp.c.max()), "min_c": float(lp.c.min()), "max_H": float(lp.H_vertex.max()),
                 "min_H": float(lp.H_vertex.min()), "energy": lp.energy, "max_stretch": float(lp.s.max()),
                 "radius_min": float(r.min()), "radius_max": float(r.max()), "rejected_steps": lp.n_rejected,
+                "snaps": lp.n_snaps,
                 "stationary": bool(lp.is_stationary), "c_max_theory": lp.params.c_max, "pattern": pattern}
 
     def report_lines(self, fin):

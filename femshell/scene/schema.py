@@ -172,6 +172,8 @@ SECTIONS = {
     "material": {
         "E": Spec(F, 1.0, "Young's modulus (only scales energies)", **POS),
         "nu": Spec(F, 0.5, "Poisson ratio", lo=0.0, hi=0.5),
+        "law": Spec(S, "svk", "membrane law: St Venant-Kirchhoff (design.md) or neo-Hookean (stable under "
+                    "strong compression)", choices=("svk", "neo-hookean")),
     },
     "shell": {
         "thickness": Spec(F, None, "shell thickness h", required=True, **POS),
@@ -273,6 +275,9 @@ SOLVER_KEYS = {
         "newton_atol_strain": Spec(F, 1e-10, "absolute Newton tolerance (in units of a unit strain's residual)",
                                    **NONNEG),
         "ramp_ds": Spec(F, 0.05, "stretch increments of the initial equilibrium", **POS),
+        "snap_ds": Spec(F, 1e-3, "a Newton failure at a stretch step this small is a fold: minimise on (0: never)",
+                        **NONNEG),
+        "snap_max_iter": Spec(I, 400, "Newton iterations of a snap past a fold (0: never snap)", lo=0),
         "max_steps": Spec(I, None, "stop after this many steps (continue with --resume)", lo=0),
         **NEWTON,
     },

@@ -153,7 +153,7 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
         loop = CoupledLoop(mesh, params, stepping, c0=seed or InitialSpot(), log=log)
         history = {}
     setup = time.perf_counter() - t0
-    counters = {"negative_c": max(0.0, -float(loop.c.min())), "non_finite": 0, "saddles": 0, "steps": 0,
+    counters = {"negative_c": max(0.0, -float(loop.c.min())), "non_finite": 0, "saddles": 0, "steps": 0, "snaps": 0,
                 **history.get("counters", {})}
 
     def watch(rec, lp):
@@ -161,6 +161,7 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
         counters["non_finite"] += int(not np.all(np.isfinite(lp.c))) + int(not np.all(np.isfinite(lp.u)))
         counters["saddles"] += int(rec.stable is False)
         counters["steps"] += 1
+        counters["snaps"] += int(rec.snapped)
 
     def save(state, rec):
         save_checkpoint(checkpoint, state, {**meta, "history": {"counters": counters}})
@@ -177,6 +178,7 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
            "message": result.message, "t": float(loop.t), "wall_s": time.perf_counter() - t0, "setup_s": setup,
            "measures": measures, "max_c": float(loop.c.max()), "c_star": params.c_star, "c_max": params.c_max,
            "max_H": float(loop.H_vertex.max()), "fixed_point": fixed_point, **counters,
+           "non_elliptic": int(np.sum(loop.shell.membrane_ellipticity(loop.u) < 0)),
            "points": pts, "triangles": tri, "c": loop.c.copy(), "H": loop.H_vertex.copy(), "rest_radius": R,
            "profile_c": polar_profile(pts, loop.c, triangles=tri),
            "profile_H": polar_profile(pts, loop.H_vertex, triangles=tri)}
@@ -233,14 +235,19 @@ def scenario_rows(sc: Scenario, r: dict) -> list:
 
 
 def invariant_rows(r: dict, label) -> list:
-    """The toleranced invariants of one run (c ≥ 0 and finite, no saddle accepted, not failed);
-    ``label(quantity)`` gives each row its name."""
+    """The toleranced invariants of one run (c ≥ 0 and finite, no saddle accepted, not failed), and
+    two reported counts: steps that snapped past a fold, and elements of the end state where the
+    membrane law is not elliptic (St Venant–Kirchhoff compressed past its limit: that part of the
+    shape is set by the mesh). ``label(quantity)`` gives each row its name."""
     nv, wall = r["n_vertices"], r["wall_s"]
     failed = r["status"] == "failed"
     return [Row(label("largest negative part of c (must be 0)"), r["negative_c"], 0.0, 0.0, nv, wall),
             Row(label("steps with non-finite c or shape"), r["non_finite"], 0.0, 0.0, nv, wall),
             Row(label("accepted steps whose equilibrium was a saddle"), r["saddles"], 0.0, 0.0, nv, wall),
             Row(label(f"run failed ({r['message'][:60]})" if failed else "run failed"), float(failed), 0.0, 0.0,
+                nv, wall),
+            Row(label("steps that snapped past a fold"), r["snaps"], None, None, nv, wall),
+            Row(label("elements where the membrane law is not elliptic at the end"), r["non_elliptic"], None, None,
                 nv, wall)]
 
 

@@ -19,12 +19,20 @@ parameters of design.md 1.5 on 4 000 vertices. That mesh sequence is
 `validation/sphere_patterns_study.py`'s ``large-spots`` (the same model and seed as this case's
 h = 2, ε = 0.5 state); ``mesh_check`` adds vertex counts to rerun that state here.
 
-The sphere has half the paper's radius (R = 15, where 4 000 vertices converge the spot), so the h
-sweep stops at h = 3 (R/h = 5); at h = 4 (R/h = 3.75, no longer a thin shell) the loop cut its time
-step to ~1e-4 after t ≈ 2.6, about a minute per step. The ε sweep stops at 0.5: at ε = 0.75 and 1
-the loop's step collapsed (dt ≈ 7e-6 at t = 0.81 and ≈ 5e-8 at t = 0.17, a step cut at every step,
-30-60 s per step), which is how a fold of the quasi-static path, where the bulge would have to jump,
-looks to a loop that accepts only stable equilibria (our reading, not analysed further).
+Why the St Venant–Kirchhoff sweeps stop where they do, and the neo-Hookean ε sweep
+------------------------------------------------------------------------------------
+At ε = 0.75 and 1, at h = 4 (R/h = 3.75) and for uniform thickness at h = 2.5 (t ≈ 63) the loop's
+step collapsed (dt ≈ 7e-6, 5e-8, 1e-4, 1e-8; Newton fails at every Δs). In each of those last
+states some elements are compressed past the St Venant–Kirchhoff membrane's ellipticity limit
+(16, 26, 10 and 4 of 8 010 elements, :meth:`~femshell.shell.ShellModel.membrane_ellipticity`;
+12, 18, 1 and 0 triangles turned inside out); in every state that reached its end at ε ≤ 0.5 there
+are none, except h = 3 (2 elements). The confined spot is compressed towards 1/(1 + ε) of its
+target, below the limit 0.866 (equibiaxial), and Newton's descent from there runs into mesh-scale
+folds. So the h sweep stops at h = 3 (R/h = 5), and the ε sweep of design.md's law at 0.5. The
+``eps_neo_hookean`` sweep repeats the ε sweep with the neo-Hookean membrane
+(:mod:`femshell.shell.element`: the same law to second order in the strain, elliptic at every
+stretch) up to ε = 1. Every state reports its count of non-elliptic elements and of snaps
+(:class:`~femshell.coupled.TimeStepping` ``snap_ds``).
 
 The seed of design.md 1.4 has width d = h, which would tie the spot to the swept h through the
 initial condition. Here every state starts from the same seed, amplitude c_max and width
@@ -76,7 +84,8 @@ LEVELS = {
     "quick": {"radius": 7.5, "n_vertices": 400, "t_final": 1.0, "h": (2.0, 3.0), "h_uniform": (), "eps": (),
               "seed_check": (), "mesh_check": ()},
     "full": {"radius": 15.0, "n_vertices": 4000, "t_final": 100.0, "h": (1.5, 2.0, 2.5, 3.0),
-             "h_uniform": (2.0, 2.5, 3.0), "eps": (0.25, 0.375, 0.5), "seed_check": (1.0, 4.0),
+             "h_uniform": (2.0, 2.5, 3.0), "eps": (0.25, 0.375, 0.5), "eps_nh": (0.25, 0.5, 0.75, 1.0),
+             "seed_check": (1.0, 4.0),
              "mesh_check": (), "wall_time": 1800.0},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
@@ -84,9 +93,10 @@ REFERENCE = {"h": 0.5, "eps": -0.25}
 _LAST = {}
 
 
-def state_model(h, eps, thickness="volume"):
-    """Model overrides of one state: thickness h, Λmin = Λmax/(1 + ε), thickness law."""
-    return {**BASE, "h0": float(h), "lam_min": LAM_MAX / (1.0 + eps), "thickness_mode": thickness}
+def state_model(h, eps, thickness="volume", law="svk"):
+    """Model overrides of one state: thickness h, Λmin = Λmax/(1 + ε), thickness law, membrane law."""
+    return {**BASE, "h0": float(h), "lam_min": LAM_MAX / (1.0 + eps), "thickness_mode": thickness,
+            "membrane_law": law}
 
 
 def fit_exponent(x, y):
@@ -105,26 +115,30 @@ def fit_exponent(x, y):
 
 
 def _key_text(key):
-    h, eps, thickness, width, nv = key
-    return f"h={h:g} eps={eps:g} {thickness} thickness, seed width {width:g}, ~{nv} vertices"
+    h, eps, thickness, width, nv, law = key
+    law = "" if law == "svk" else f", {law}"
+    return f"h={h:g} eps={eps:g} {thickness} thickness, seed width {width:g}, ~{nv} vertices{law}"
 
 
 def state_keys(cfg):
-    """The sweeps (name -> keys) and the checks (keys) of a level; key (h, ε, thickness law, seed width, vertices)."""
-    nv0 = cfg["n_vertices"]
-    sweeps = {"h": [(h, EPS_FIXED, "volume", SEED_WIDTH, nv0) for h in cfg["h"]],
-              "h_uniform": [(h, EPS_FIXED, "uniform", SEED_WIDTH, nv0) for h in cfg["h_uniform"]],
-              "eps": [(H_FIXED, e, "volume", SEED_WIDTH, nv0) for e in cfg["eps"]]}
-    checks = ([(H_FIXED, EPS_FIXED, "volume", w, nv0) for w in cfg["seed_check"]]
-              + [(H_FIXED, EPS_FIXED, "volume", SEED_WIDTH, n) for n in cfg["mesh_check"]])
+    """The sweeps (name -> keys) and the checks (keys) of a level; key (h, ε, thickness law, seed width,
+    vertices, membrane law)."""
+    nv0, w0 = cfg["n_vertices"], SEED_WIDTH
+    sweeps = {"h": [(h, EPS_FIXED, "volume", w0, nv0, "svk") for h in cfg["h"]],
+              "h_uniform": [(h, EPS_FIXED, "uniform", w0, nv0, "svk") for h in cfg["h_uniform"]],
+              "eps": [(H_FIXED, e, "volume", w0, nv0, "svk") for e in cfg["eps"]],
+              "eps_neo_hookean": [(H_FIXED, e, "volume", w0, nv0, "neo-hookean") for e in cfg.get("eps_nh", ())]}
+    checks = ([(H_FIXED, EPS_FIXED, "volume", w, nv0, "svk") for w in cfg["seed_check"]]
+              + [(H_FIXED, EPS_FIXED, "volume", w0, n, "svk") for n in cfg["mesh_check"]])
     return sweeps, checks
 
 
 def run_state(key, cfg, checkpoints=None, log=None):
     """One state of the level ``cfg`` (:func:`.sphere_patterns.run_scenario`'s dict); with a ``checkpoints``
     directory it resumes from, and saves to, its own file there."""
-    h, eps, thickness, width, nv = key
-    sc = Scenario(f"h{h:g}-eps{eps:g}-{thickness}-seed{width:g}", "", cfg["radius"], state_model(h, eps, thickness))
+    h, eps, thickness, width, nv, law = key
+    name = f"h{h:g}-eps{eps:g}-{thickness}-seed{width:g}" + ("" if law == "svk" else f"-{law}")
+    sc = Scenario(name, "", cfg["radius"], state_model(h, eps, thickness, law))
     ck = None if checkpoints is None else Path(checkpoints) / f"{sc.name}-n{nv}.npz"
     return run_scenario(sc, t_final=cfg["t_final"], n_vertices=nv, checkpoint=ck, wall_time=cfg.get("wall_time"),
                         seed=InitialSpot(width=width), log=log)
@@ -153,14 +167,15 @@ def run(level, out_dir=None, log=None):
             f"max c {r['max_c']:.3g}, {r['steps']} steps, {r['wall_s']:.0f} s")
         rows.extend(state_rows(key, r))
     for var, label in (("h", "h (volume-conserving thickness)"), ("h_uniform", "h (uniform thickness)"),
-                       ("eps", "eps")):
+                       ("eps", "eps"), ("eps_neo_hookean", "eps (neo-Hookean membrane)")):
         keys = [k for k in sweeps[var] if k in states]
         if not keys:
             continue
-        ref = REFERENCE["eps" if var == "eps" else "h"]
-        fixed = f"eps={EPS_FIXED:g}" if var != "eps" else f"h={H_FIXED:g}"
+        is_eps = var.startswith("eps")
+        ref = REFERENCE["eps" if is_eps else "h"]
+        fixed = f"eps={EPS_FIXED:g}" if not is_eps else f"h={H_FIXED:g}"
         spotted = [k for k in keys if states[k]["measures"].n_spots > 0]
-        x = [k[1] if var == "eps" else k[0] for k in spotted]
+        x = [k[1] if is_eps else k[0] for k in spotted]
         p, sp = fit_exponent(x, [states[k]["measures"].spot_radius for k in spotted])
         rows.append(Row(f"states with spots in the sweep of {label} at {fixed}", len(spotted)))
         if not math.isnan(p):       # no NaN in a result file: the count row says why there is no exponent
@@ -199,15 +214,18 @@ def plot(rows, fig):
         return
     ax1, ax2, ax3, ax4 = fig.subplots(1, 4)
     ticks = {}
-    for ax, var, style in ((ax1, "h", "o-"), (ax1, "h_uniform", "s--"), (ax2, "eps", "o-")):
-        keys = [k for k in _LAST["sweeps"][var] if k in states and states[k]["measures"].n_spots]
+    labels = {"h": "volume-conserving", "h_uniform": "uniform", "eps": f"h={H_FIXED:g}",
+              "eps_neo_hookean": f"h={H_FIXED:g}, neo-Hookean"}
+    for ax, var, style in ((ax1, "h", "o-"), (ax1, "h_uniform", "s--"), (ax2, "eps", "o-"),
+                           (ax2, "eps_neo_hookean", "s--")):
+        keys = [k for k in _LAST["sweeps"].get(var, ()) if k in states and states[k]["measures"].n_spots]
         if not keys:
             continue
-        x = np.array([k[1] if var == "eps" else k[0] for k in keys])
+        x = np.array([k[1] if var.startswith("eps") else k[0] for k in keys])
         y = np.array([states[k]["measures"].spot_radius for k in keys])
-        ax.loglog(x, y, style, label={"h": "volume-conserving", "h_uniform": "uniform", "eps": f"h={H_FIXED:g}"}[var])
-        ref = REFERENCE["eps" if var == "eps" else "h"]
-        if var != "h_uniform":
+        ax.loglog(x, y, style, label=labels[var])
+        ref = REFERENCE["eps" if var.startswith("eps") else "h"]
+        if var in ("h", "eps"):
             ax.loglog(x, y[0] * (x / x[0]) ** ref, "k:", lw=0.8, label=f"slope {ref:g}")
         ticks.setdefault(ax, set()).update(x.tolist())
     for i, k in enumerate(k for k in _LAST["checks"] if k in states and states[k]["measures"].n_spots):
