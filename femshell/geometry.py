@@ -48,6 +48,24 @@ def vertex_normals(points, triangles) -> np.ndarray:
     return n / np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
 
 
+def fold_angles(points, triangles, edge_faces) -> np.ndarray:
+    """Angle (degrees) between the unit normals of the two faces of every interior edge.
+
+    ``edge_faces`` (ne, 2) from :class:`femshell.mesh.topology.Topology` (−1 where missing; those
+    edges are left out). A smooth surface resolved by the mesh has small angles; one near 90° or
+    beyond is a fold on the scale of a single edge, finer than the mesh can represent.
+
+    >>> pts = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 1]])
+    >>> round(float(fold_angles(pts, np.array([[0, 1, 2], [2, 1, 3]]), np.array([[0, 1]]))[0]), 1)
+    54.7
+    """
+    n = face_normals(points, triangles)
+    ef = np.asarray(edge_faces)
+    ef = ef[ef[:, 1] >= 0]
+    cos = np.einsum("ij,ij->i", n[ef[:, 0]], n[ef[:, 1]])
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
 def element_to_vertex(values: np.ndarray, points, triangles) -> np.ndarray:
     """Area-weighted average of per-triangle values at each vertex: Σ A_f v_f / Σ A_f."""
     area = triangle_areas(points, triangles)

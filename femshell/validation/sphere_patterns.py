@@ -60,6 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import find_spots, polar_profile
+from ..geometry import fold_angles
 from ..coupled import CoupledError, CoupledLoop, InitialSpot, MechanochemicalModel, TimeStepping
 from ..io import load_checkpoint, save_checkpoint
 from ..mesh import sphere
@@ -179,6 +180,7 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
            "measures": measures, "max_c": float(loop.c.max()), "c_star": params.c_star, "c_max": params.c_max,
            "max_H": float(loop.H_vertex.max()), "fixed_point": fixed_point, **counters,
            "non_elliptic": int(np.sum(loop.shell.membrane_ellipticity(loop.u) < 0)),
+           "max_fold_deg": float(fold_angles(pts, tri, mesh.topology.edge_faces).max()),
            "points": pts, "triangles": tri, "c": loop.c.copy(), "H": loop.H_vertex.copy(), "rest_radius": R,
            "profile_c": polar_profile(pts, loop.c, triangles=tri),
            "profile_H": polar_profile(pts, loop.H_vertex, triangles=tri)}
@@ -236,9 +238,11 @@ def scenario_rows(sc: Scenario, r: dict) -> list:
 
 def invariant_rows(r: dict, label) -> list:
     """The toleranced invariants of one run (c ≥ 0 and finite, no saddle accepted, not failed), and
-    two reported counts: steps that snapped past a fold, and elements of the end state where the
-    membrane law is not elliptic (St Venant–Kirchhoff compressed past its limit: that part of the
-    shape is set by the mesh). ``label(quantity)`` gives each row its name."""
+    three reported figures of the end state's trustworthiness: steps that snapped past a fold,
+    elements where the membrane law is not elliptic (St Venant–Kirchhoff compressed past its limit),
+    and the largest angle between neighbouring faces (near 90° or more: a fold finer than the mesh).
+    In the last two cases that part of the shape is set by the mesh. ``label(quantity)`` gives each
+    row its name."""
     nv, wall = r["n_vertices"], r["wall_s"]
     failed = r["status"] == "failed"
     return [Row(label("largest negative part of c (must be 0)"), r["negative_c"], 0.0, 0.0, nv, wall),
@@ -248,6 +252,8 @@ def invariant_rows(r: dict, label) -> list:
                 nv, wall),
             Row(label("steps that snapped past a fold"), r["snaps"], None, None, nv, wall),
             Row(label("elements where the membrane law is not elliptic at the end"), r["non_elliptic"], None, None,
+                nv, wall),
+            Row(label("largest angle between neighbouring faces at the end (deg)"), r["max_fold_deg"], None, None,
                 nv, wall)]
 
 
