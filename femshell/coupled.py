@@ -16,7 +16,9 @@ of the shell grown by s(c):
 4. mechanics: :func:`~femshell.solvers.newton.minimize` with ``stable=True`` warm
    started from u (or from the secant prediction u + (dt/dt_prev)(u − u_prev) when
    that has lower energy): a local minimum, never a saddle. A Newton failure cuts dt
-   and redoes the step from the last accepted state;
+   and redoes the step from the last accepted state, except where Newton ran out of
+   iterations on a tiny Δs: a fold, past which the minimisation goes on (a snap,
+   ``TimeStepping.snap_ds``);
 5. accept: t += dt, (c, u) ← (c⁺, u⁺), H from the new shape; the next dt grows by at
    most ``grow`` while Δs stays below ``ds_max`` (dt_next = dt · min(grow, safety · ds_max/Δs)).
 

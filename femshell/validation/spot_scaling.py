@@ -84,7 +84,8 @@ LEVELS = {
     "quick": {"radius": 7.5, "n_vertices": 400, "t_final": 1.0, "h": (2.0, 3.0), "h_uniform": (), "eps": (),
               "seed_check": (), "mesh_check": ()},
     "full": {"radius": 15.0, "n_vertices": 4000, "t_final": 100.0, "h": (1.5, 2.0, 2.5, 3.0),
-             "h_uniform": (2.0, 2.5, 3.0), "eps": (0.25, 0.375, 0.5), "eps_nh": (0.25, 0.5, 0.75, 1.0),
+             "h_uniform": (2.0, 2.5, 3.0), "eps": (0.25, 0.375, 0.5), "eps_nh": (0.25, 0.5, 0.75),
+             "uniform_nh_check": (2.5,),
              "seed_check": (1.0, 4.0),
              "mesh_check": (), "wall_time": 1800.0},
 }
@@ -129,7 +130,8 @@ def state_keys(cfg):
               "eps": [(H_FIXED, e, "volume", w0, nv0, "svk") for e in cfg["eps"]],
               "eps_neo_hookean": [(H_FIXED, e, "volume", w0, nv0, "neo-hookean") for e in cfg.get("eps_nh", ())]}
     checks = ([(H_FIXED, EPS_FIXED, "volume", w, nv0, "svk") for w in cfg["seed_check"]]
-              + [(H_FIXED, EPS_FIXED, "volume", w0, n, "svk") for n in cfg["mesh_check"]])
+              + [(H_FIXED, EPS_FIXED, "volume", w0, n, "svk") for n in cfg["mesh_check"]]
+              + [(h, EPS_FIXED, "uniform", w0, nv0, "neo-hookean") for h in cfg.get("uniform_nh_check", ())])
     return sweeps, checks
 
 
@@ -228,10 +230,15 @@ def plot(rows, fig):
         if var in ("h", "eps"):
             ax.loglog(x, y[0] * (x / x[0]) ** ref, "k:", lw=0.8, label=f"slope {ref:g}")
         ticks.setdefault(ax, set()).update(x.tolist())
-    for i, k in enumerate(k for k in _LAST["checks"] if k in states and states[k]["measures"].n_spots):
-        for ax, x in ((ax1, k[0]), (ax2, k[1])):
-            ax.loglog([x], [states[k]["measures"].spot_radius], "x", color="tab:red",
-                      label=None if i else "seed/mesh checks")
+    labelled = set()
+    for k in (k for k in _LAST["checks"] if k in states and states[k]["measures"].n_spots):
+        seed_or_mesh = k[2] == "volume"           # h = 2 again: on both panels; the uniform check on h's only
+        label = "seed/mesh checks" if seed_or_mesh else "uniform, neo-Hookean"
+        for ax, x in ((ax1, k[0]), (ax2, k[1])) if seed_or_mesh else ((ax1, k[0]),):
+            ax.loglog([x], [states[k]["measures"].spot_radius], "x" if seed_or_mesh else "D",
+                      color="tab:red" if seed_or_mesh else "tab:purple",
+                      label=None if (label, ax) in labelled else label)
+            labelled.add((label, ax))
     for ax, xl in ((ax1, "h"), (ax2, "eps")):
         xs = sorted(ticks.get(ax, ()))       # the sweep's values, not crowded decades (after every loglog call)
         ax.set_xticks(xs, [f"{v:g}" for v in xs], minor=False)
