@@ -49,7 +49,9 @@ compressible neo-Hookean law
 
 is polyconvex (hence elliptic at every stretch), is infinite where a triangle degenerates,
 and agrees with St Venant–Kirchhoff to second order in the strain (same α, β at small
-strain). The bending term is the same for both.
+strain). The bending term is the same for both. Neither law keeps a shell from folding on the
+scale of one edge where the mesh is too coarse for the wrinkles a thin grown layer wants (a
+resolution limit: :func:`femshell.geometry.fold_angles` shows it).
 
 Exact gradients and Hessians come from JAX automatic differentiation of
 :func:`element_energy`, in float64, vectorised over all elements.

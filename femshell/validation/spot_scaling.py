@@ -84,7 +84,8 @@ LEVELS = {
     "quick": {"radius": 7.5, "n_vertices": 400, "t_final": 1.0, "h": (2.0, 3.0), "h_uniform": (), "eps": (),
               "seed_check": (), "mesh_check": ()},
     "full": {"radius": 15.0, "n_vertices": 4000, "t_final": 100.0, "h": (1.5, 2.0, 2.5, 3.0),
-             "h_uniform": (2.0, 2.5, 3.0), "eps": (0.25, 0.375, 0.5), "eps_nh": (0.25, 0.5, 0.75),
+             "h_uniform": (2.0, 2.5, 3.0), "eps": (0.25, 0.375, 0.5),
+             "eps_nh": (0.25, 0.5, 0.75), "h_nh": (1.5, 2.0, 2.5, 3.0),
              "uniform_nh_check": (2.5,),
              "seed_check": (1.0, 4.0),
              "mesh_check": (), "wall_time": 1800.0},
@@ -128,7 +129,8 @@ def state_keys(cfg):
     sweeps = {"h": [(h, EPS_FIXED, "volume", w0, nv0, "svk") for h in cfg["h"]],
               "h_uniform": [(h, EPS_FIXED, "uniform", w0, nv0, "svk") for h in cfg["h_uniform"]],
               "eps": [(H_FIXED, e, "volume", w0, nv0, "svk") for e in cfg["eps"]],
-              "eps_neo_hookean": [(H_FIXED, e, "volume", w0, nv0, "neo-hookean") for e in cfg.get("eps_nh", ())]}
+              "eps_neo_hookean": [(H_FIXED, e, "volume", w0, nv0, "neo-hookean") for e in cfg.get("eps_nh", ())],
+              "h_neo_hookean": [(h, EPS_FIXED, "volume", w0, nv0, "neo-hookean") for h in cfg.get("h_nh", ())]}
     checks = ([(H_FIXED, EPS_FIXED, "volume", w, nv0, "svk") for w in cfg["seed_check"]]
               + [(H_FIXED, EPS_FIXED, "volume", w0, n, "svk") for n in cfg["mesh_check"]]
               + [(h, EPS_FIXED, "uniform", w0, nv0, "neo-hookean") for h in cfg.get("uniform_nh_check", ())])
@@ -169,7 +171,8 @@ def run(level, out_dir=None, log=None):
             f"max c {r['max_c']:.3g}, {r['steps']} steps, {r['wall_s']:.0f} s")
         rows.extend(state_rows(key, r))
     for var, label in (("h", "h (volume-conserving thickness)"), ("h_uniform", "h (uniform thickness)"),
-                       ("eps", "eps"), ("eps_neo_hookean", "eps (neo-Hookean membrane)")):
+                       ("eps", "eps"), ("eps_neo_hookean", "eps (neo-Hookean membrane)"),
+                       ("h_neo_hookean", "h (volume-conserving, neo-Hookean membrane)")):
         keys = [k for k in sweeps[var] if k in states]
         if not keys:
             continue
@@ -217,9 +220,9 @@ def plot(rows, fig):
     ax1, ax2, ax3, ax4 = fig.subplots(1, 4)
     ticks = {}
     labels = {"h": "volume-conserving", "h_uniform": "uniform", "eps": f"h={H_FIXED:g}",
-              "eps_neo_hookean": f"h={H_FIXED:g}, neo-Hookean"}
-    for ax, var, style in ((ax1, "h", "o-"), (ax1, "h_uniform", "s--"), (ax2, "eps", "o-"),
-                           (ax2, "eps_neo_hookean", "s--")):
+              "eps_neo_hookean": f"h={H_FIXED:g}, neo-Hookean", "h_neo_hookean": "volume-conserving, neo-Hookean"}
+    for ax, var, style in ((ax1, "h", "o-"), (ax1, "h_uniform", "s--"), (ax1, "h_neo_hookean", "^-."),
+                           (ax2, "eps", "o-"), (ax2, "eps_neo_hookean", "s--")):
         keys = [k for k in _LAST["sweeps"].get(var, ()) if k in states and states[k]["measures"].n_spots]
         if not keys:
             continue
