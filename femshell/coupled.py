@@ -395,7 +395,8 @@ class TimeStepping:
         minimisation goes on from Newton's last iterate (lower energy than the start) for
         up to ``snap_max_iter`` more iterations, and the shell snaps to the stable
         equilibrium it reaches. Without this the loop creeps towards the fold with ever
-        smaller steps. ``snap_max_iter = 0`` disables it.
+        smaller steps. At most one snap is tried per step (where it does not settle the
+        cuts go on as usual). ``snap_max_iter = 0`` disables it.
     max_steps : stop after this many accepted steps in one call of :meth:`CoupledLoop.run`.
     """
 
@@ -613,18 +614,21 @@ class CoupledLoop:
                         max_iter=int(max_iter or st.newton_max_iter), residual_scale=residual_scale,
                         backend=st.newton_backend, log=None)
 
-    def _snap(self, failed: NewtonError, ds: float):
-        """The stable equilibrium past a fold (``TimeStepping.snap_ds``), or None where this does not apply.
-
-        Newton's last iterate has a lower energy than the old shape; the minimisation goes
-        on from there with the residual scale of the original start, so the tolerance is the
-        one the step would have had.
-        """
+    def _snap_applies(self, failed: NewtonError, ds: float) -> bool:
+        """Newton ran out of iterations (not a failed line search) at Δs ≤ snap_ds, snaps enabled."""
         st = self.stepping
         last = failed.result
-        if (st.snap_max_iter == 0 or ds > st.snap_ds or last is None or last.iterations < st.newton_max_iter
-                or not np.all(np.isfinite(last.u))):
-            return None
+        return not (st.snap_max_iter == 0 or ds > st.snap_ds or last is None
+                    or last.iterations < st.newton_max_iter or not np.all(np.isfinite(last.u)))
+
+    def _snap(self, last, ds: float):
+        """The stable equilibrium past a fold (``TimeStepping.snap_ds``), or None if it does not settle.
+
+        ``last`` is the failed Newton's last iterate (:class:`NewtonResult`), of lower energy than
+        the old shape; the minimisation goes on from there with the residual scale of the original
+        start, so the tolerance is the one the step would have had.
+        """
+        st = self.stepping
         self._say(f"  step {self.step + 1} t = {self.t:.6g}: no equilibrium near the old shape at Δs = {ds:.3g} "
                   f"(a fold): minimising on for up to {st.snap_max_iter} iterations")
         try:
@@ -739,7 +743,7 @@ class CoupledLoop:
         dt = float(self.dt)
         cuts = 0
         reason = ""
-        snapped = False
+        snapped = snap_tried = False
         while True:
             remaining = st.t_final - self.t
             last = dt >= remaining * (1 - 1e-12)
@@ -772,7 +776,11 @@ class CoupledLoop:
                 try:
                     res = self._newton(start)
                 except NewtonError as exc:
-                    res = self._snap(exc, ds)
+                    # one snap per step: where it does not settle, the cuts that follow are plain
+                    res = None
+                    if not snap_tried and self._snap_applies(exc, ds):
+                        snap_tried = True
+                        res = self._snap(exc.result, ds)
                     snapped = res is not None
                     if not snapped:
                         ok, reason = False, f"Newton failed: {exc}"

@@ -222,6 +222,12 @@ def test_snap_minimises_on_to_the_equilibrium_newton_ran_out_of_iterations_for(b
     never = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_max_iter=0, max_cuts=0)
     with pytest.raises(CoupledError, match="Newton did not converge"):
         CoupledLoop.from_state_dict(ball, p, states[2], never).advance()
+    msgs = []                                                # a snap that does not settle is not retried
+    once = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_ds=1.0, snap_max_iter=1,
+                        max_cuts=3)
+    with pytest.raises(CoupledError, match="after 3 cuts"):
+        CoupledLoop.from_state_dict(ball, p, states[2], once, log=msgs.append).advance()
+    assert sum("minimising on" in m for m in msgs) == 1 and sum("cut to" in m for m in msgs) == 3
     small = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_ds=1e-9, max_cuts=0)
     with pytest.raises(CoupledError, match="Newton did not converge"):       # Δs above snap_ds: a plain failure
         CoupledLoop.from_state_dict(ball, p, states[2], small).advance()
