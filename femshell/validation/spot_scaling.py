@@ -29,10 +29,13 @@ states some elements are compressed past the St Venant–Kirchhoff membrane's el
 are none, except h = 3 (2 elements). The confined spot is compressed towards 1/(1 + ε) of its
 target, below the limit 0.866 (equibiaxial), and Newton's descent from there runs into mesh-scale
 folds. So the h sweep stops at h = 3 (R/h = 5), and the ε sweep of design.md's law at 0.5. The
-``eps_neo_hookean`` sweep repeats the ε sweep with the neo-Hookean membrane
-(:mod:`femshell.shell.element`: the same law to second order in the strain, elliptic at every
-stretch) up to ε = 1. Every state reports its count of non-elliptic elements and of snaps
-(:class:`~femshell.coupled.TimeStepping` ``snap_ds``).
+``eps_neo_hookean`` and ``h_neo_hookean`` sweeps repeat the ε and h sweeps with the neo-Hookean
+membrane (:mod:`femshell.shell.element`: the same law to second order in the strain, elliptic at
+every stretch), ε up to 0.75; a uniform-thickness h = 2.5 check runs with it too. At ε = 1 it
+stopped as well (t = 0.34), for another reason: the spot, thinned to h = 0.5 on edges of 0.9, folds
+finer than the mesh (30 edges past 90°). Every state reports its snaps
+(:class:`~femshell.coupled.TimeStepping` ``snap_ds``), its non-elliptic elements and its largest
+angle between neighbouring faces (:func:`femshell.geometry.fold_angles`).
 
 The seed of design.md 1.4 has width d = h, which would tie the spot to the swept h through the
 initial condition. Here every state starts from the same seed, amplitude c_max and width
@@ -50,10 +53,13 @@ paper's exponents are a claim about its spring network, ours is a measurement). 
 the invariants of every run (c ≥ 0 and finite, no saddle accepted, the run did not fail).
 
 Measured (full level; table and reading in docs/sphere-patterns.md): spot radius 5.43, 4.63, 3.88, 3.01
-at h = 1.5, 2, 2.5, 3 (volume-conserving; exponent −0.83 ± 0.12 against +1/2); 4.97, 4.76, 4.63 at
-ε = 0.25, 0.375, 0.5 (−0.104 against −1/4); 4.43 / 5.26 from seed widths 1 / 4. With uniform
-thickness the spot spreads at h = 2 (12 spots, spacing 5.1, at t = 100) and 2.5 (3 spots at t = 63),
-not at h = 3 (one blister): the uniform sweep's radius exponent mixes these patterns.
+at h = 1.5, 2, 2.5, 3 (volume-conserving, SVK; exponent −0.83 ± 0.12 against +1/2) and 6.78, 5.30, 4.49,
+4.02 with the neo-Hookean membrane (−0.76 ± 0.04); 4.97, 4.76, 4.63 at ε = 0.25, 0.375, 0.5 (SVK; −0.104
+against −1/4) and 5.59, 5.30, 4.87 at ε = 0.25, 0.5, 0.75 (neo-Hookean, ε = 0.75 stopped at t = 39;
+−0.12 ± 0.04); 4.43 / 5.26 from seed widths 1 / 4. With uniform thickness the spot spreads at h = 2
+(12 spots, spacing 5.1, at t = 100) and 2.5 (SVK: 3 spots, then failed at t = 63 past the SVK limit;
+neo-Hookean: 11 spots, spacing 6.2, at t = 100), not at h = 3 (one blister): the uniform sweep's
+radius exponent mixes these patterns.
 """
 
 from __future__ import annotations
