@@ -52,14 +52,16 @@ def fold_angles(points, triangles, edge_faces) -> np.ndarray:
     """Angle (degrees) between the unit normals of the two faces of every interior edge.
 
     ``edge_faces`` (ne, 2) from :class:`femshell.mesh.topology.Topology` (−1 where missing; those
-    edges are left out). A smooth surface resolved by the mesh has small angles; one near 90° or
-    beyond is a fold on the scale of a single edge, finer than the mesh can represent.
+    edges are left out, the rest keep their order). A smooth surface resolved by the mesh has small
+    angles; one near 90° or beyond is a fold on the scale of a single edge, finer than the mesh can
+    represent. A face of zero area has no normal and counts as 90° from its neighbours.
 
     >>> pts = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 1]])
     >>> round(float(fold_angles(pts, np.array([[0, 1, 2], [2, 1, 3]]), np.array([[0, 1]]))[0]), 1)
     54.7
     """
-    n = face_normals(points, triangles)
+    av = triangle_area_vectors(points, triangles)
+    n = av / np.maximum(np.linalg.norm(av, axis=1), 1e-300)[:, None]
     ef = np.asarray(edge_faces)
     ef = ef[ef[:, 1] >= 0]
     cos = np.einsum("ij,ij->i", n[ef[:, 0]], n[ef[:, 1]])

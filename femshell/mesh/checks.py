@@ -38,6 +38,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
+from ..geometry import fold_angles
 from .surface import SurfaceMesh
 from .topology import MeshError
 
@@ -302,19 +303,16 @@ def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
         # an edge whose index order is consistent (inconsistent edges are reported above).
         inner = np.flatnonzero(topo.edge_faces[:, 1] >= 0)
         f0, f1 = topo.edge_faces[inner, 0], topo.edge_faces[inner, 1]
-        unit = nvec / np.maximum(np.linalg.norm(nvec, axis=1), 1e-300)[:, None]
-        cosang = np.einsum("ei,ei->e", unit[f0], unit[f1])
+        angle = np.zeros(topo.n_edges)
+        angle[inner] = fold_angles(pts, tri, topo.edge_faces)
         consistent = np.ones(topo.n_edges, bool)
         consistent[inc] = False
-        fold = inner[(cosang < np.cos(np.radians(FOLD_ANGLE_DEG))) & consistent[inner]
-                     & ~degenerate[f0] & ~degenerate[f1]]
+        fold = inner[(angle[inner] > FOLD_ANGLE_DEG) & consistent[inner] & ~degenerate[f0] & ~degenerate[f1]]
         if len(fold):
-            cos_e = np.ones(topo.n_edges)
-            cos_e[inner] = cosang
             problems.append("folded triangles: " + _examples(
                 fold, lambda e: f"at edge {tuple(topo.edges[e].tolist())} the normals of triangles "
                                 f"{topo.edge_faces[e, 0]} and {topo.edge_faces[e, 1]} are "
-                                f"{np.degrees(np.arccos(np.clip(cos_e[e], -1, 1))):.1f} deg apart")
+                                f"{angle[e]:.1f} deg apart")
                 + f" ({_plural(len(fold), 'edge')})")
 
     used = np.bincount(tri.ravel(), minlength=n) > 0

@@ -328,10 +328,6 @@ def _split_hessian(interior, membrane=svk_membrane):
     return hessian
 
 
-element_hessian = _split_hessian(interior=False)
-element_hessian_interior = _split_hessian(interior=True)
-
-
 class Kernels:
     """The batched energy, gradient, Hessian and parts of one membrane law (compiled on first use).
 
