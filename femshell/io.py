@@ -587,7 +587,8 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
 
 def _read_checkpoint(path: Path):
     try:
-        with np.load(path, allow_pickle=False) as z:
+        # our own handle: np.load leaks the one it opens when the file is not an archive
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
             if _HEADER_KEY not in z.files:
                 raise CheckpointError(f"{path}: not a femshell checkpoint (no header)")
             header = json.loads(bytes(z[_HEADER_KEY]).decode("utf-8"))

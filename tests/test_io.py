@@ -3,6 +3,7 @@
 import json
 import os
 import warnings
+from pathlib import Path
 
 import meshio
 import numpy as np
@@ -40,7 +41,7 @@ def test_atomic_write_keeps_old_file_when_writer_raises(tmp_path):
     assert p.read_text() == "good"
     assert _leftovers(tmp_path) == []
 
-    atomic_write(p, lambda tmp: open(tmp, "w").write("better"))
+    atomic_write(p, lambda tmp: Path(tmp).write_text("better"))
     assert p.read_text() == "better"
     assert _leftovers(tmp_path) == []
 
