@@ -74,7 +74,11 @@ Those cases fail their stability row, and their count is not used in the monoton
 (it is the count of an unconverged state). With the neo-Hookean membrane (``Material(law="neo-hookean")``,
 the same law to second order in the strain, elliptic at every stretch) both have a stable state at
 ε = 0.5 (measured at resolution 8: R2 = 1 stays flat, R2 = 1.5 bifurcates axisymmetrically at
-ε = 0.353 into a stable dome; 0 wrinkles each). The case keeps design.md's law.
+ε = 0.353 into a stable dome; 0 wrinkles each). So the quick level (R2 = 3, 4, where the SVK
+states are elliptic) keeps design.md's law and the full level, whose grid reaches R2 = 1, runs
+the whole grid with the neo-Hookean membrane: one law for every count compared (the paper's
+springs, Hookean in length, do not soften in compression either). Passing ``law="svk"`` to
+:func:`follow` reproduces the SVK grid.
 """
 
 from __future__ import annotations
@@ -105,10 +109,11 @@ SOURCE = ("Zakharov & Dasbiswas, Mechanochemical induction of wrinkling morphoge
 EPS_END = 0.5          # the paper's Λmax/Λmin − 1
 NU = 0.5
 #: (h, R2) cases and the mesh resolution (edges per R2 along the grown circle) of each level
+#: and the membrane law (module docstring: SVK has no stable state at h = 2, R2 <= 1.5)
 LEVELS = {
-    "quick": {"cases": [(2.0, 3.0), (2.0, 4.0)], "resolution": 5},
+    "quick": {"cases": [(2.0, 3.0), (2.0, 4.0)], "resolution": 5, "law": "svk"},
     "full": {"cases": [(2.0, r) for r in (1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5)] + [(0.25, 3.0)],
-             "resolution": 8},
+             "resolution": 8, "law": "neo-hookean"},
 }
 #: the paper's R2 where the count at h = 2 becomes 2, 3, 4, and its count at h = 0.25, R2 = 3
 PAPER_CHANGES = {2: 1.95, 3: 2.9, 4: 3.9}
@@ -173,7 +178,7 @@ class Disk:
     centroid is inside r < R2, ā₀ and h outside; flat target curvature.
     """
 
-    def __init__(self, h, R2, resolution, R1=None):
+    def __init__(self, h, R2, resolution, R1=None, law="svk"):
         self.h, self.R2 = float(h), float(R2)
         self.R1 = outer_radius(R2) if R1 is None else float(R1)
         p2, tri = _disk_mesh(self.R1, self.R2, resolution)
@@ -183,7 +188,7 @@ class Disk:
         self.a0 = metric(self.points, tri)
         c = self.points[tri].mean(axis=1)
         self.inside = np.hypot(c[:, 0], c[:, 1]) < self.R2
-        self.model = ShellModel(self.mesh, Material(1.0, NU), self.rest_of(0.0))
+        self.model = ShellModel(self.mesh, Material(1.0, NU, law=law), self.rest_of(0.0))
         self.problem = GrowthParameter(self.model, self.rest_of, parameter_scale=eps_scale(h, R2),
                                        length_scale=self.h)
         self._plane = np.column_stack([np.ones(len(p2)), p2])
@@ -344,10 +349,11 @@ def loss_of_stability(d, branch):
                         bracket=(ea, eb), weights=w, parameter_scale=prob.parameter_scale)
 
 
-def follow(h, R2, resolution, log=None, verbose=False):
+def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
     """Flat branch, branch switching, secondary switches, stable state at ε = 0.5 (module docstring).
 
-    ``verbose``: also pass ``log`` to the continuation (one line per step).
+    ``verbose``: also pass ``log`` to the continuation (one line per step); ``law``: the membrane
+    law (:class:`~femshell.shell.Material`).
     Returns a dict: disk, branches (list of Branch), switch_points (SpecialPoint list), first
     (the first loss of stability of the flat state or None), n_first, u, w, count, spectrum, relaxed,
     n_negative_final, energy, wall_s.
@@ -355,7 +361,7 @@ def follow(h, R2, resolution, log=None, verbose=False):
     t0 = time.perf_counter()
     log = log or _quiet
     clog = log if verbose else None
-    d = Disk(h, R2, resolution)
+    d = Disk(h, R2, resolution, law=law)
     prob = d.problem
     branch = _follow_branch(d, None, log=clog)
     branches, switches = [branch], []
@@ -433,7 +439,7 @@ def run(level, log=None):
     rows, results = [], []
     for h, R2 in cfg["cases"]:
         with timed() as t:
-            r = follow(h, R2, res, log=log)
+            r = follow(h, R2, res, log=log, law=cfg["law"])
         results.append((h, R2, r))
         nv = r["disk"].n_vertices
         at = f" @ h={h:g} R2={R2:g}"
@@ -441,7 +447,7 @@ def run(level, log=None):
         ptxt = "" if pc is None else f" (paper: {pc})"
         first = r["first"]
         bad = "" if r["n_negative_final"] == 0 else ", final state NOT stable: not a result"
-        rows.append(Row(f"wrinkles at eps=0.5{ptxt}{bad}" + at, r["count"], None, None, nv, t()))
+        rows.append(Row(f"wrinkles at eps=0.5 ({cfg['law']} membrane){ptxt}{bad}" + at, r["count"], None, None, nv, t()))
         rows.append(Row("first bifurcation eps of the flat state" + at,
                         first.parameter if first else math.nan, None, None, nv, t()))
         rows.append(Row("first bifurcation azimuthal n (multiplicity "
