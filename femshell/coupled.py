@@ -87,6 +87,7 @@ from .chemistry import ReactionDiffusion, curvature_source
 from .geometry import element_to_vertex, mean_curvature
 from .growth import THICKNESS_MODES, contractility, element_average, stretch, target_metric, target_thickness
 from .shell import Material, RestState, ShellModel
+from .solvers.linear import LinearSolverError, Refactorizer
 from .solvers.newton import NewtonError, minimize
 
 # Bitwise reproducible resumes need a run-to-run reproducible linear solver. Threaded MKL
@@ -384,6 +385,11 @@ class TimeStepping:
     newton_rtol, newton_atol_strain : convergence |∇Π| ≤ rtol · |∇Π(u_start)| + atol, with
         atol = newton_atol_strain × (the residual of a uniform unit strain).
     newton_max_iter, newton_backend : passed to :func:`~femshell.solvers.newton.minimize`.
+    quasi_newton : each Newton solve first takes up to this many quasi-Newton iterations on
+        the factorisation of the last converged state's Hessian (its stability check), which
+        the loop keeps (``minimize(quasi_newton=...)``); the converged state is then checked
+        by a fresh factorisation as before. 0: plain Newton (one more Hessian assembly and
+        factorisation per step).
     ramp_ds : largest stretch increment of the initial equilibrium (growth ramped from
         s = 1 to s(c0), with a secant predictor; cut on Newton failure, grown by 1.5 after success).
     predictor : start Newton from the secant prediction u + (h/h_prev)(u − u_prev) when
@@ -415,6 +421,7 @@ class TimeStepping:
     newton_atol_strain: float = 1e-10
     newton_max_iter: int = 40
     newton_backend: str = "auto"
+    quasi_newton: int = 12
     ramp_ds: float = 0.1
     predictor: bool = True
     snap_ds: float = 1e-3
@@ -440,6 +447,8 @@ class TimeStepping:
         _finite("newton_atol_strain", self.newton_atol_strain, 0.0)
         if int(self.newton_max_iter) != self.newton_max_iter or self.newton_max_iter < 1:
             raise ValueError(f"newton_max_iter must be an integer >= 1, got {self.newton_max_iter!r}")
+        if int(self.quasi_newton) != self.quasi_newton or self.quasi_newton < 0:
+            raise ValueError(f"quasi_newton must be an integer >= 0, got {self.quasi_newton!r}")
         _finite("ramp_ds", self.ramp_ds, 0.0, lo_open=True, text="(0, inf)")
         _finite("snap_ds", self.snap_ds, 0.0)
         if int(self.snap_max_iter) != self.snap_max_iter or self.snap_max_iter < 0:
@@ -557,6 +566,8 @@ class CoupledLoop:
         self.chemistry = ReactionDiffusion(mesh.triangles, n, D=params.D, beta=params.beta, points=mesh.points)
         self._length = float(params.h0)
         self._atol = self._residual_floor()
+        # one pair for the whole run: the Hessian's sparsity pattern is analysed once
+        self._factorizers = (Refactorizer(self.stepping.newton_backend), Refactorizer(self.stepping.newton_backend))
 
         if c0 is None:
             c = np.zeros(n)
@@ -612,7 +623,7 @@ class CoupledLoop:
         st = self.stepping
         return minimize(self.shell, u_start, stable=True, rtol=st.newton_rtol, atol=self._atol,
                         max_iter=int(max_iter or st.newton_max_iter), residual_scale=residual_scale,
-                        backend=st.newton_backend, log=None)
+                        factorizers=self._factorizers, quasi_newton=st.quasi_newton, log=None)
 
     def _snap_applies(self, failed: NewtonError, ds: float) -> bool:
         """Newton ran out of iterations (not a failed line search) at Δs ≤ snap_ds, snaps enabled."""
@@ -834,6 +845,7 @@ class CoupledLoop:
         self.dt = float(min(st.dt_max, max(st.dt_min, nxt)))
         rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
         self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
+                  f"(+{res.quasi_newton_iterations} quasi) "
                   f"cuts {cuts} max c {rec.max_c:.4g} max H {rec.max_H:.4g} ds {ds:.3g} "
                   f"spots {rec.n_spots} {rec.wall_s:.2f}s{' snapped' if snapped else ''}")
         return rec
@@ -924,7 +936,9 @@ class CoupledLoop:
         Keys: version, t, dt, step, c (n,), u (free unknowns), u_prev and h_prev (the
         previous accepted state and step, for the secant predictor; u_prev empty at
         step 0), stationary_count, n_rejected, n_snaps, newton_total, last_newton_iterations,
-        last_ds, n_vertices, n_free.
+        last_ds, n_vertices, n_free, held_cholesky (whether the last state's Hessian is held as
+        a Cholesky factor for the quasi-Newton start of the next step: a resumed loop factorises
+        it again, so that it continues exactly as the uninterrupted one).
         Store with :func:`femshell.io.save_checkpoint`; parameters go in its meta.
         """
         return {"version": STATE_VERSION, "t": float(self.t), "dt": float(self.dt), "step": int(self.step),
@@ -935,7 +949,12 @@ class CoupledLoop:
                 "last_ds": float(self._last_ds), "n_vertices": int(self.mesh.n_vertices),
                 "u_prev": (np.zeros(0) if self._u_prev is None else np.asarray(self._u_prev, float).copy()),
                 "h_prev": float(self._h_prev),
-                "n_free": int(self.shell.n_free)}
+                "n_free": int(self.shell.n_free),
+                "held_cholesky": int(self._held_cholesky())}
+
+    def _held_cholesky(self) -> bool:
+        held = self._factorizers[0].last
+        return held is not None and held.kind == "spd"
 
     def load_state_dict(self, state: dict):
         """Continue from :meth:`state_dict` output (same mesh, parameters and stepping)."""
@@ -973,6 +992,13 @@ class CoupledLoop:
         self.s = self.growth.stretch(self.c)
         self.growth.apply(self.s)
         self._update_curvature()
+        for f in self._factorizers:
+            f.free()
+        if state.get("held_cholesky", 0) and self.stepping.quasi_newton:
+            try:
+                self._factorizers[0](self.shell.hessian(self.u))
+            except LinearSolverError:
+                self._factorizers[0].free()     # the next step starts with plain Newton
 
     @classmethod
     def from_state_dict(cls, mesh, params: MechanochemicalModel, state: dict,

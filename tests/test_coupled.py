@@ -5,6 +5,7 @@ the spot cases use a milder contractility ratio (Λmin = 13.5: s ≤ 1.11) than 
 paper's 1.5; the loop's logic does not depend on it.
 """
 
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -207,28 +208,39 @@ def test_a_step_that_cannot_be_made_keeps_the_last_state(ball, spot_run):
         lp.advance()
 
 
+def test_quasi_newton_start_reaches_the_state_plain_newton_reaches(ball, spot_run):
+    """The fixture's steps ran with the default quasi-Newton start on the held Cholesky factor (no
+    Newton iteration needed after it: the stability check is the only factorisation); plain Newton
+    from the same state, with its fresh Hessians, must land on the same shape."""
+    p, st, loop, initial, states, records = spot_run
+    assert states[2]["held_cholesky"] == 1 and records[2].newton_iterations == 0
+    plain = CoupledLoop.from_state_dict(ball, p, states[2], replace(st, quasi_newton=0))
+    assert plain.advance().newton_iterations > 0 and plain.step == loop.step
+    assert np.abs(plain.points - loop.points).max() <= 1e-9 * R
+    assert np.array_equal(plain.c, loop.c)
+
+
 def test_snap_minimises_on_to_the_equilibrium_newton_ran_out_of_iterations_for(ball, spot_run):
     """A fold looks to the loop like Newton running out of iterations at a small Δs. Forced here with a
-    budget of one iteration: the snap goes on minimising from Newton's last iterate and lands on the
-    equilibrium a normal budget finds; without it (snap_max_iter = 0) the step cannot be made."""
+    budget of one (plain Newton) iteration: the snap goes on minimising from Newton's last iterate and
+    lands on the equilibrium a normal budget finds; without it (snap_max_iter = 0) the step cannot be made."""
     p, st, loop, initial, states, records = spot_run
-    assert records[2].newton_iterations > 1                  # one iteration is not enough for step 3
-    tight = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_ds=1.0, max_cuts=0)
+    one = dict(newton_max_iter=1, quasi_newton=0)
+    tight = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, snap_ds=1.0, max_cuts=0, **one)
     lp = CoupledLoop.from_state_dict(ball, p, states[2], tight)
     rec = lp.advance()
     assert rec.snapped and lp.n_snaps == 1 and rec.stable and rec.dt == records[2].dt
     assert np.abs(lp.points - loop.points).max() <= 1e-9 * R
     assert lp._u_prev is None                                # no secant predictor through a jump
-    never = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_max_iter=0, max_cuts=0)
+    never = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, snap_max_iter=0, max_cuts=0, **one)
     with pytest.raises(CoupledError, match="Newton did not converge"):
         CoupledLoop.from_state_dict(ball, p, states[2], never).advance()
     msgs = []                                                # a snap that does not settle is not retried
-    once = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_ds=1.0, snap_max_iter=1,
-                        max_cuts=3)
+    once = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, snap_ds=1.0, snap_max_iter=1, max_cuts=3, **one)
     with pytest.raises(CoupledError, match="after 3 cuts"):
         CoupledLoop.from_state_dict(ball, p, states[2], once, log=msgs.append).advance()
     assert sum("minimising on" in m for m in msgs) == 1 and sum("cut to" in m for m in msgs) == 3
-    small = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, newton_max_iter=1, snap_ds=1e-9, max_cuts=0)
+    small = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, snap_ds=1e-9, max_cuts=0, **one)
     with pytest.raises(CoupledError, match="Newton did not converge"):       # Δs above snap_ds: a plain failure
         CoupledLoop.from_state_dict(ball, p, states[2], small).advance()
 

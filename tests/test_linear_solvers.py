@@ -6,7 +6,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from femshell.solvers.linear import (LinearSolverError, available_backends, factorize,
+from femshell.solvers.linear import (LinearSolverError, Refactorizer, available_backends, factorize,
                                      smallest_eigenvalues)
 
 BACKENDS = [pytest.param(b, marks=pytest.mark.skipif(b not in available_backends(), reason=f"{b} unavailable"))
@@ -120,6 +120,34 @@ def test_pardiso_refactor_reuses_analysis():
     f.free()
     with pytest.raises(LinearSolverError, match="freed"):
         f.solve(b)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_refactorizer_inertia_through_a_loss_of_definiteness(backend):
+    """A shifted Laplacian swept through its lowest eigenvalues, the way Newton meets a buckling
+    load: every inertia must equal the count of dense eigenvalues below the shift, whichever of
+    Cholesky or LDLᵀ produced it, and the solves must be right."""
+    A = laplacian_2d(12, neumann=False).tocsr()
+    ev = np.linalg.eigvalsh(A.toarray())
+    b = np.random.default_rng(1).standard_normal(A.shape[0])
+    r = Refactorizer(backend)
+    # PD, indefinite (two sizes), PD again: the object must recover Cholesky after LDLᵀ
+    shifts = [0.5 * ev[0], 0.5 * (ev[0] + ev[1]), 0.5 * (ev[3] + ev[4]), 0.3 * ev[0], 0.1 * ev[0]]
+    for sigma in shifts:
+        K = (A - sigma * sp.identity(A.shape[0])).tocsr()
+        f = r(K)
+        n_neg = int((ev < sigma).sum())
+        assert f.inertia == (len(ev) - n_neg, n_neg, 0)
+        assert rel_residual(K, f.solve(b), b) < 1e-10
+    if backend == "pardiso":
+        # Cholesky for the PD matrices (the first, and the last two: the first PD one after the
+        # indefinite stretch is found by LDLᵀ), one failed Cholesky, LDLᵀ for the rest
+        assert r.counts == {"cholesky": 2, "cholesky_failed": 1, "ldlt": 3}
+        # each kind analysed its pattern once
+        assert r._spd.n_analyses == 1 and r._ldl.n_analyses == 1
+    else:
+        assert r.counts == {"cholesky": 0, "cholesky_failed": 0, "ldlt": 5}
+    r.free()
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

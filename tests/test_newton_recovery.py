@@ -219,3 +219,60 @@ def test_shell_load_steps_too_large_for_newton_are_cut_and_the_run_completes():
         x = model.positions(res.u)
         assert -(x[tip, 0] - mesh.points[tip, 0]).mean() == pytest.approx(L * (1 - np.sin(theta) / theta), rel=0.02)
         assert (x[tip, 2] - mesh.points[tip, 2]).mean() == pytest.approx(L * (1 - np.cos(theta)) / theta, rel=0.02)
+
+
+class NonlinearChain:
+    """A chain of unit springs between n beads with a stiffening on-site potential, under a dead load λ f:
+    Π(u) = Σ ½ (u_{i+1} − u_i)² + Σ (½ u_i² + ¼ a u_i⁴) − λ f·u. Convex, so the minimiser is unique;
+    the Hessian is tridiagonal and changes with u (the quartic term), as a shell's does with its shape."""
+
+    def __init__(self, n=40, a=5.0):
+        self.n, self.a = n, a
+        self.f = np.sin(np.linspace(0.0, 3.0, n)) + 0.3
+        self.load_factor = 0.0
+        self.loads = [object()]
+        self.calls = {"hessian": 0}
+        D = sp.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
+        self.L = (D.T @ D).tocsr()
+
+    def energy(self, u):
+        return float(0.5 * u @ (self.L @ u) + np.sum(0.5 * u**2 + 0.25 * self.a * u**4) - self.load_factor * self.f @ u)
+
+    def gradient(self, u):
+        return self.L @ u + u + self.a * u**3 - self.load_factor * self.f
+
+    def load_gradient(self, u):
+        return self.f
+
+    def hessian(self, u):
+        self.calls["hessian"] += 1
+        return (self.L + sp.diags(1.0 + 3.0 * self.a * u**2)).tocsr()
+
+
+def test_quasi_newton_on_the_held_factorisation_reaches_newtons_equilibrium_with_one_hessian():
+    from femshell.solvers.linear import Refactorizer
+
+    prob = NonlinearChain()
+    facs = (Refactorizer(), Refactorizer())
+    prob.load_factor = 1.0
+    u1 = minimize(prob, np.zeros(prob.n), rtol=1e-10, factorizers=facs, log=None).u
+    # the reference at the next load: plain Newton, fresh factorisations, tight tolerance
+    prob.load_factor = 1.2
+    ref = minimize(prob, u1, rtol=1e-13, log=None).u
+    prob.calls["hessian"] = 0
+    res = minimize(prob, u1, rtol=1e-10, factorizers=facs, quasi_newton=20, stable=True, log=None)
+    assert res.converged and res.stable
+    assert 0 < res.quasi_newton_iterations <= 20 and res.iterations == 0
+    assert prob.calls["hessian"] == 1                      # only the stability check at the end
+    assert np.abs(res.u - ref).max() < 1e-8 * np.abs(ref).max()
+    # held factorisation far from the new Hessian: quasi-Newton stalls or runs out, Newton finishes
+    prob.load_factor = 8.0
+    far = minimize(prob, res.u, rtol=1e-10, factorizers=facs, quasi_newton=3, log=None)
+    ref_far = minimize(prob, res.u, rtol=1e-13, log=None).u
+    assert far.quasi_newton_iterations <= 3 and far.iterations > 0
+    assert np.abs(far.u - ref_far).max() < 1e-8 * np.abs(ref_far).max()
+    # nothing held (new factorizers): plain Newton
+    fresh = minimize(prob, res.u, rtol=1e-10, factorizers=(Refactorizer(), Refactorizer()), quasi_newton=20, log=None)
+    assert fresh.quasi_newton_iterations == 0 and fresh.iterations > 0
+    for f in facs:
+        f.free()

@@ -278,6 +278,8 @@ SOLVER_KEYS = {
         "snap_ds": Spec(F, 1e-3, "a Newton failure at a stretch step this small is a fold: minimise on (0: never)",
                         **NONNEG),
         "snap_max_iter": Spec(I, 400, "Newton iterations of a snap past a fold (0: never snap)", lo=0),
+        "quasi_newton": Spec(I, 12, "quasi-Newton iterations on the last step's factorised Hessian before "
+                                    "Newton (0: plain Newton)", lo=0),
         "max_steps": Spec(I, None, "stop after this many steps (continue with --resume)", lo=0),
         **NEWTON,
     },

@@ -3,8 +3,9 @@ r"""Newton's method for equilibria of an energy, returning stable ones when aske
 The solver knows a *problem*: any object with ``energy(u)``, ``gradient(u)`` and
 ``hessian(u)`` (scipy sparse, symmetric). It minimises :math:`\Pi(u)`:
 
-1. factorise :math:`K = \nabla^2\Pi` with a symmetric-indefinite LDLᵀ, which also
-   gives the inertia (number of negative eigenvalues, Sylvester's law);
+1. factorise :math:`K = \nabla^2\Pi`: Cholesky where it is positive definite, else a
+   symmetric-indefinite LDLᵀ (:class:`~femshell.solvers.linear.Refactorizer`); either gives
+   the inertia (number of negative eigenvalues, Sylvester's law);
 2. if :math:`K` is not positive definite, the Newton step is still taken when it is
    a descent direction that the line search accepts; otherwise K is shifted,
    :math:`K + \tau D` (:math:`D` = the positive diagonal of K), with τ growing until
@@ -17,6 +18,11 @@ The solver knows a *problem*: any object with ``energy(u)``, ``gradient(u)`` and
 5. with ``stable=True`` a converged point whose Hessian has negative eigenvalues is
    a saddle: step along the eigenvector of the most negative eigenvalue (the sign
    that lowers Π) and continue, so the result is a local minimum.
+
+In a sequence of solves (time or load stepping) the caller can keep the factorisations
+(``factorizers``) and start each solve with quasi-Newton iterations on the last one
+(``quasi_newton``, :func:`lagged_quasi_newton`): the converged point's own Hessian is
+then the only one assembled and factorised, as the stability check.
 
 Example
 -------
@@ -38,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .linear import LinearSolverError, factorize, smallest_eigenvalues
+from .linear import LinearSolverError, Refactorizer, smallest_eigenvalues
 
 
 class NewtonError(RuntimeError):
@@ -61,6 +67,8 @@ class NewtonResult:
     stable: bool | None = None
     history: list = field(default_factory=list)
     times: dict = field(default_factory=dict)
+    #: iterations of the quasi-Newton phase on a held factorisation (``minimize(quasi_newton=...)``)
+    quasi_newton_iterations: int = 0
 
     def summary(self) -> str:
         t = ", ".join(f"{k} {v:.2f}s" for k, v in self.times.items())
@@ -70,7 +78,7 @@ class NewtonResult:
 
 
 def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, residual_scale=None,
-             backend="auto", max_step=None, log=print) -> NewtonResult:
+             backend="auto", max_step=None, factorizers=None, quasi_newton=0, log=print) -> NewtonResult:
     """Find an equilibrium (a local minimum if ``stable``) of ``problem`` from ``u0``.
 
     Parameters
@@ -80,6 +88,18 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         the problem has loads, else |grad(u0)|.
     stable : escape saddle points along negative-curvature directions.
     max_step : largest allowed max-norm of a step (None: unlimited).
+    factorizers : (Refactorizer, Refactorizer), optional
+        For the Hessian and for its shifted versions. A caller that solves many times on
+        one mesh (a time or load stepping) passes the same pair to every call, so the
+        symbolic analysis of the sparsity pattern is done once; by default each call makes
+        its own (with ``backend``) and frees them at the end.
+    quasi_newton : int
+        With ``factorizers`` whose last factorisation (of an earlier, positive definite
+        Hessian K₀, a Cholesky: the previous solve's stability check) is still held, first up to this many
+        quasi-Newton iterations on it (:func:`lagged_quasi_newton`): no Hessian is assembled
+        or factorised until they converge or stall; then Newton goes on as usual, so a
+        converged point is still checked (and, if ``stable``, made stable) by a fresh
+        factorisation of its own Hessian. 0: plain Newton.
     """
     u = np.array(u0, dtype=float)
     times = {"assembly": 0.0, "factorize": 0.0, "solve": 0.0, "line_search": 0.0}
@@ -96,6 +116,31 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         else:
             residual_scale = np.linalg.norm(g)
     residual_scale = max(residual_scale, 1e-300)
+    own = factorizers is None
+    if own:
+        factorizers = (Refactorizer(backend), Refactorizer(backend))
+    try:
+        qn_iterations = 0
+        held = factorizers[0].last
+        for f in factorizers:
+            f.restart()
+        if quasi_newton and held is not None and held.kind == "spd" and held.n == len(u):
+            u, e, g, qn_iterations = lagged_quasi_newton(problem, u, e, g, held, rtol * residual_scale + atol,
+                                                         quasi_newton, times)
+            if log:
+                log(f"    quasi-Newton on the held factorisation: {qn_iterations} iterations, |r| {np.linalg.norm(g):.3e}")
+        out = _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step,
+                        factorizers, log)
+        out.quasi_newton_iterations = qn_iterations
+        return out
+    finally:
+        if own:
+            for f in factorizers:
+                f.free()
+
+
+def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step, factorizers, log):
+    hessian_factors, shifted_factors = factorizers
     history = []
     n_neg = None
     res = np.linalg.norm(g)
@@ -103,7 +148,6 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     e_start = e
     roundoff_floor = False
     tau = None
-    fac = shifted = None  # factorisations kept across iterations: the pattern never changes
     for it in range(max_iter + 1):
         res = np.linalg.norm(g)
         history.append((it, e, res))
@@ -113,7 +157,7 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         K = problem.hessian(u)
         times["assembly"] += time.perf_counter() - t
         t = time.perf_counter()
-        fac = _factorize(K, backend, fac)
+        fac = _factorize(K, hessian_factors)
         times["factorize"] += time.perf_counter() - t
         n_neg = fac.inertia[1] if fac.inertia is not None else None
         if res <= rtol * residual_scale + atol:
@@ -144,7 +188,7 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
             u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
         if not ok and n_neg:
             # start near the last shift that worked: saves most of the trial factorisations
-            shifted, tau = _shift_to_positive(K, backend, times, max(1e-8, tau / 16) if tau else 1e-6, shifted)
+            shifted, tau = _shift_to_positive(K, shifted_factors, times, max(1e-8, tau / 16) if tau else 1e-6)
             if log:
                 log(f"    newton: Hessian has {n_neg} negative eigenvalues; shifted by {tau:.2e}")
             d = -shifted.solve(g)
@@ -167,17 +211,66 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     return out
 
 
+def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, memory=8, stall=4):
+    r"""L-BFGS from an earlier Hessian's factorisation: minimise Π without assembling a Hessian.
+
+    The inverse-Hessian approximation starts from :math:`H_0 = K_0^{-1}`, the held
+    factorisation of a positive definite Hessian of a nearby problem (in a time or load
+    stepping: the previous step's converged state), and is corrected by the last ``memory``
+    pairs :math:`s_k = u_{k+1} - u_k`, :math:`y_k = \nabla\Pi_{k+1} - \nabla\Pi_k` (two-loop
+    recursion, Nocedal & Wright, Numerical Optimization, alg. 7.4); a pair with
+    :math:`s_k \cdot y_k \le 0` is skipped so that the approximation stays positive definite
+    and every direction is a descent one. Each iteration costs one back-substitution and an
+    energy/gradient line search instead of a Hessian assembly and a factorisation. With
+    :math:`K_0` close to the current Hessian the iteration contracts like Newton's after a
+    few steps (superlinearly).
+
+    Stops when :math:`|\nabla\Pi| \le` ``tol``, after ``max_iter`` iterations, when the
+    line search fails, or when ``stall`` iterations in a row did not halve the residual (a
+    Hessian that has moved too far: Newton is cheaper from there). Returns (u, Π, ∇Π,
+    iterations); the state returned has an energy no higher than the start.
+    """
+    t0 = time.perf_counter()
+    pairs = []
+    slow = 0
+    it = 0
+    res = np.linalg.norm(g)
+    while it < max_iter and res > tol:
+        q = g.copy()
+        alphas = []
+        for s, y, rho in reversed(pairs):
+            a = rho * (s @ q)
+            q -= a * y
+            alphas.append(a)
+        r = factorization.solve(q)
+        for (s, y, rho), a in zip(pairs, reversed(alphas)):
+            r += s * (a - rho * (y @ r))
+        un, en, gn, ok = _line_search(problem, u, e, g, -r)
+        if not ok:
+            break
+        it += 1
+        s, y = un - u, gn - g
+        sy = float(s @ y)
+        if sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
+            pairs = (pairs + [(s, y, 1.0 / sy)])[-memory:]
+        res_new = np.linalg.norm(gn)
+        slow = slow + 1 if res_new > 0.5 * res else 0
+        u, e, g, res = un, en, gn, res_new
+        if slow >= stall:
+            break
+    times["quasi_newton"] = times.get("quasi_newton", 0.0) + time.perf_counter() - t0
+    return u, e, g, it
+
+
 def _result(u, converged, it, e, res, scale, n_neg, history, times):
     return NewtonResult(u, converged, it, e, res, scale, n_neg, None if n_neg is None else n_neg == 0,
                         history, dict(times))
 
 
-def _factorize(K, backend, previous=None):
-    """LDLᵀ of K; with ``previous`` (same sparsity pattern) its symbolic analysis is reused."""
+def _factorize(K, factorizer):
+    """Factorisation of K with its inertia (Cholesky if positive definite, else LDLᵀ: Refactorizer)."""
     try:
-        if previous is not None:
-            return previous.refactor(K)
-        return factorize(K, kind="symmetric_indefinite", backend=backend)
+        return factorizer(K)
     except LinearSolverError as exc:
         raise NewtonError(f"the Hessian could not be factorised: {exc}") from exc
 
@@ -193,15 +286,14 @@ def _step(problem, u, e, g, d, max_step, times):
     return out
 
 
-def _shift_to_positive(K, backend, times, tau_start=1e-6, previous=None):
+def _shift_to_positive(K, factorizer, times, tau_start=1e-6):
     """Factorise K + tau D with a tau (growing by 4 from ``tau_start``) that makes it positive definite."""
     D = np.abs(K.diagonal())
     D = np.where(D > 0, D, D.max() if D.max() > 0 else 1.0)
     tau = tau_start
-    fac = previous
     for _ in range(60):
         t = time.perf_counter()
-        fac = _factorize(K + sp.diags(tau * D), backend, fac)
+        fac = _factorize(K + sp.diags(tau * D), factorizer)
         times["factorize"] += time.perf_counter() - t
         if fac.inertia is None or fac.inertia[1] == 0:
             return fac, tau

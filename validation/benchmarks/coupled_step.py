@@ -91,8 +91,8 @@ import subprocess
 import sys
 import time
 
-CATS = ("growth", "predictor", "newton", "hessian", "eg_start", "factorize", "check", "solve", "line_search", "escape",
-        "curvature", "energy", "chemistry", "record")
+CATS = ("growth", "predictor", "newton", "hessian", "eg_start", "quasi_newton", "factorize", "check", "solve",
+        "line_search", "escape", "curvature", "energy", "chemistry", "record")
 
 
 class Timers:
@@ -101,7 +101,8 @@ class Timers:
     def __init__(self):
         self.t = dict.fromkeys(CATS, 0.0)
         self.last = {}  # duration of the last call per category
-        self.n = {"factorizations": 0, "escapes": 0, "newton_solves": 0, "newton_failed": 0, "iterations": 0}
+        self.n = {"factorizations": 0, "escapes": 0, "newton_solves": 0, "newton_failed": 0, "iterations": 0,
+                  "qn_iterations": 0}
 
     def wrap(self, obj, name, cat, count=None):
         f = getattr(obj, name)
@@ -161,6 +162,8 @@ def instrument(loop, timers):
                 tm = res.times
                 timers.t["eg_start"] += max(tm.get("assembly", 0.0) - (timers.t["hessian"] - h0), 0.0)
                 timers.t["solve"] += tm.get("solve", 0.0)
+                timers.t["quasi_newton"] += tm.get("quasi_newton", 0.0)
+                timers.n["qn_iterations"] += int(res.quasi_newton_iterations)
                 timers.t["line_search"] += max(tm.get("line_search", 0.0) - (timers.t["escape"] - e0), 0.0)
                 timers.n["iterations"] += int(res.iterations)
                 if res.converged:
@@ -258,15 +261,15 @@ def summarise(r):
     """Mean per timed step of each category (s) and the derived costs."""
     st = r["steps"][r["timed_from"]:]
     k = max(len(st), 1)
-    m = {c: sum(s[c] for s in st) / k for c in CATS + ("wall",)}
+    m = {c: sum(s.get(c, 0.0) for s in st) / k for c in CATS + ("wall",)}
     m["energy"] -= m["curvature"]
-    for c in ("factorizations", "escapes", "newton_solves", "iterations", "cuts"):
-        m[c] = sum(s[c] for s in st) / k
+    for c in ("factorizations", "escapes", "newton_solves", "iterations", "qn_iterations", "cuts"):
+        m[c] = sum(s.get(c, 0) for s in st) / k
     m["n"] = len(st)
     m["other"] = m["wall"] - sum(m[c] for c in ("growth", "predictor", "newton", "curvature", "energy",
                                                  "chemistry", "record"))
-    m["newton_other"] = m["newton"] - sum(m[c] for c in ("hessian", "eg_start", "factorize", "solve",
-                                                          "line_search", "escape"))
+    m["newton_other"] = m["newton"] - sum(m[c] for c in ("hessian", "eg_start", "quasi_newton", "factorize",
+                                                          "solve", "line_search", "escape"))
     it = max(m["iterations"], 1e-300)
     # a Newton solve of i iterations does i+1 Hessians and factorisations and i solves/line searches
     m["per_iter"] = (m["newton"] - m["eg_start"]) / (it + m["newton_solves"]) if m["newton_solves"] else 0.0
@@ -285,17 +288,18 @@ def _extension(r):
 
 def print_table(results):
     print()
-    print("per accepted step, mean over the timed steps (s); Newton = Hess + E+g0 + factor + solve + lsearch + "
-          "escape; check = the part of Hess + factor spent at the converged point (stability check)")
-    hdr = (f"{'vertices':>8} {'unknowns':>8} {'steps':>5} {'its/st':>6} {'fact/st':>7} {'growth':>7} {'pred':>6} "
-           f"{'Newton':>7} {'Hess':>7} {'E+g0':>6} {'factor':>7} {'check':>6} {'solve':>6} {'lsearch':>7} {'escape':>6} "
+    print("per accepted step, mean over the timed steps (s); Newton = Hess + E+g0 + qN + factor + solve + lsearch + "
+          "escape; qN = quasi-Newton on the held factorisation (its line searches included); check = the part of "
+          "Hess + factor spent at the converged point (stability check)")
+    hdr = (f"{'vertices':>8} {'unknowns':>8} {'steps':>5} {'its/st':>6} {'qN/st':>5} {'fact/st':>7} {'growth':>7} "
+           f"{'pred':>6} {'Newton':>7} {'Hess':>7} {'E+g0':>6} {'qN':>6} {'factor':>7} {'check':>6} {'solve':>6} {'lsearch':>7} {'escape':>6} "
            f"{'H':>6} {'energy':>6} {'chem':>7} {'record':>6} {'other':>6} {'step':>7} {'RSS GB':>6} load start/end")
     print(hdr)
     for r in results:
         m = summarise(r)
-        print(f"{r['vertices']:>8} {r['unknowns']:>8} {m['n']:>5} {m['iterations']:>6.2f} {m['factorizations']:>7.2f} "
-              f"{m['growth']:>7.4f} {m['predictor']:>6.3f} {m['newton']:>7.2f} {m['hessian']:>7.2f} "
-              f"{m['eg_start']:>6.3f} {m['factorize']:>7.2f} {m['check']:>6.2f} {m['solve']:>6.3f} {m['line_search']:>7.3f} "
+        print(f"{r['vertices']:>8} {r['unknowns']:>8} {m['n']:>5} {m['iterations']:>6.2f} {m['qn_iterations']:>5.2f} "
+              f"{m['factorizations']:>7.2f} {m['growth']:>7.4f} {m['predictor']:>6.3f} {m['newton']:>7.2f} "
+              f"{m['hessian']:>7.2f} {m['eg_start']:>6.3f} {m['quasi_newton']:>6.2f} {m['factorize']:>7.2f} {m['check']:>6.2f} {m['solve']:>6.3f} {m['line_search']:>7.3f} "
               f"{m['escape']:>6.3f} {m['curvature']:>6.3f} {m['energy']:>6.3f} {m['chemistry']:>7.5f} "
               f"{m['record']:>6.3f} {m['other']:>6.3f} {m['wall']:>7.2f} {r['rss_gb']:>6.2f} "
               f"{r['load_start']} / {r['load_end']}")
