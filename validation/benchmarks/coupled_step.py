@@ -79,6 +79,17 @@ changes during a run: ~4.3 s (~9 %) per coupled step, ~0.4 s (~10 %) at 2 505 ve
 Hessian 4.6 s per call, of which the JAX element kernels ~3.7 s (``np.asarray`` waiting
 for them) and the sparse scatter (``assembly.matrix``, pattern already cached) 0.77 s;
 the step record's ``count_spots`` 0.74 s per step. Nothing else above 1 %.
+
+Measured 2026-11-25 05:51-06:08 UTC on an idle machine (load 0.1-1.4), 25 007 vertices, steps
+4-9, one process at a time: the code of the table above, 17.9 s per step (factorisations 11.5 s
+for 3 LDLᵀ, Hessian 5.4 s); with the factorisations kept across Newton solves (the symbolic
+analysis done once per run) and Cholesky tried before LDLᵀ (``Refactorizer``), 14.4 s (8.7 s,
+4.7 s); with the quasi-Newton start on the held factorisation (``TimeStepping.quasi_newton``),
+**6.7 s**: 5 quasi-Newton iterations, no Newton iteration, 1 Hessian (1.8 s) and 1 Cholesky
+(2.9 s, both the stability check) per step, the rest the quasi-Newton back-substitutions and
+line searches (1.6 s); setup 134 -> 79 s, peak RSS 2.3 GB. At 2 505 / 10 011 vertices (same
+day, load 2.5-3.2: a 25 000-vertex run shared the machine) 0.69 / 4.3 s per step, setup 11 /
+44 s (10 011: one step needed a Newton iteration after its quasi-Newton ones).
 """
 
 from __future__ import annotations
