@@ -90,6 +90,17 @@ analysis done once per run) and Cholesky tried before LDLᵀ (``Refactorizer``),
 line searches (1.6 s); setup 134 -> 79 s, peak RSS 2.3 GB. At 2 505 / 10 011 vertices (same
 day, load 2.5-3.2: a 25 000-vertex run shared the machine) 0.69 / 4.3 s per step, setup 11 /
 44 s (10 011: one step needed a Newton iteration after its quasi-Newton ones).
+
+Whole runs with that code (2026-11-25, load 2-4: the two runs shared the machine). 2 505
+vertices (``--sizes 2500 --full 2500 --wall-limit 1500``): t_final = 100 reached in 1 130
+accepted steps (207 rejected by ds_max, 208 Newton iterations besides the quasi-Newton
+ones), 0.79 s per step, setup 11.6 s, **15.0 min** in all; one spot at the end (max c 0.469).
+25 007 vertices, the study's spots scenario (``validation/sphere_patterns_study.py --scenarios
+spots --scale 1.0 --n-vertices 6250 --t-final 100``, same parameters and stop): t = 100 in 354 steps (54 cut),
+7.2 s per step (median 6.5), **45.5 min** with setup; one spot, not stationary. The finer mesh
+took a third of the coarse one's steps (mean dt 0.3-0.7 from t = 20 at 25k, 0.05-0.12 at
+2.5k; why is not analysed), so the estimate above, which carries the coarse run's step count
+over to the finer meshes, overestimates their whole run.
 """
 
 from __future__ import annotations
