@@ -753,10 +753,11 @@ class Refactorizer:
     With PARDISO it also tries Cholesky (``kind="spd"``) before LDLᵀ: a Cholesky that
     succeeds proves the inertia (n, 0, 0), which is all a stable equilibrium needs, and
     costs less than the symmetric-indefinite factorisation with its pivoting, scaling and
-    matching (0.85 against 1.4 s for a shell Hessian with 60k unknowns, measured). A matrix that is not positive definite (or singular) makes the Cholesky fail
-    and is factorised by LDLᵀ, which then gives the full inertia; after such a failure the
-    next matrices go straight to LDLᵀ until one is positive definite again, so an
-    indefinite stretch pays for one failed Cholesky, not one per matrix. With SuperLU
+    matching (0.85 against 1.4 s for a shell Hessian with 60k unknowns, measured). A matrix
+    that is not positive definite (or singular) makes the Cholesky fail and is factorised
+    by LDLᵀ, which then gives the full inertia; after such a failure the next matrices go
+    straight to LDLᵀ until one is positive definite again, so an indefinite stretch pays
+    for one failed Cholesky, not one per matrix. With SuperLU
     (no symbolic reuse, the same cost for both kinds) it always uses LDLᵀ.
 
     ``refactorizer(K)`` returns the :class:`Factorization` of K (valid until the next
