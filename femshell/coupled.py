@@ -20,7 +20,25 @@ of the shell grown by s(c):
    iterations on a tiny Δs: a fold, past which the minimisation goes on (a snap,
    ``TimeStepping.snap_ds``);
 5. accept: t += dt, (c, u) ← (c⁺, u⁺), H from the new shape; the next dt grows by at
-   most ``grow`` while Δs stays below ``ds_max`` (dt_next = dt · min(grow, safety · ds_max/Δs)).
+   most ``grow`` while Δs stays below ``ds_max`` (dt_next = dt · min(grow, safety · ds_max/Δs)),
+   and stays within the stability limit of the staggering (below).
+
+**Why the staggering limits dt.** The chemistry step holds the source P(H(u)) of the
+start of the step; the shape that c⁺ makes changes P. Linearised about a fixed point
+c = P/β, with G = ∂P/∂c through the mechanics, a perturbation δ is multiplied per step by
+a = 1 − q (1 − γ), q = 1 − e^{−β dt}, γ = g/β (D = 0: the exponential update), or by
+a = (1 + g dt)/(1 + β dt) (implicit Euler; diffusion only damps more), for an eigenvalue g of G.
+A bulge flattens itself as it grows (g < 0, the negative feedback that makes a spot
+stationary), and where the growth law is steep g is large: in the ``spots`` scenario
+the unlimited step oscillates about the fixed point for ever (max|Δc| / (dt c) ≈
+1e-2 … 1e-1 at dt ≈ 0.2 … 1, R = 15, 2 700 vertices) and becomes stationary with dt ≤ 0.1
+(measured: γ ≈ −20 needs β dt < 0.1). After each step the loop estimates the gain
+from the change it just made, g ≈ min ΔP_i/Δc_i over the vertices that changed most (the
+step's change of the source against its change of c, the way explicit ODE solvers
+detect stiffness; :func:`feedback_gain`), and bounds the next dt so that
+a ≥ −``feedback_amplification`` (:func:`feedback_step_limit`). Where the change is slow
+and smooth the estimate is small and dt grows; an oscillating mode that grows dominates
+Δc and the next estimate sees it.
 
 After ``max_cuts`` cuts in one step (or dt < ``dt_min``) the loop stops with a
 :class:`CoupledError` whose message says why; the loop still holds the last accepted
@@ -98,7 +116,8 @@ from .solvers.newton import NewtonError, minimize
 os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 __all__ = ["MechanochemicalModel", "GrowthCoupling", "InitialSpot", "gaussian_spot", "TimeStepping",
-           "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "REST_CURVATURES"]
+           "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "REST_CURVATURES", "feedback_gain",
+           "feedback_step_limit"]
 
 REST_CURVATURES = ("mesh", "k0")
 STATE_VERSION = 1
@@ -369,6 +388,50 @@ class InitialSpot:
 
 # ----------------------------------------------------------------------------- time stepping
 
+def feedback_gain(dc, dP, fraction: float = 0.1) -> float:
+    """The source's most negative gain over a step: min ΔP_i / Δc_i over the vertices whose
+    |Δc_i| ≥ ``fraction`` · max |Δc| (1/time; nan if c did not change).
+
+    For a change along one eigenvector of G = ∂P/∂c every ratio is its eigenvalue. The
+    oscillating modes of a spot are local (a ring of 10–20 vertices at its edge on a 2 700-vertex
+    sphere), and a global average (ΔP · Δc)/(Δc · Δc) dilutes them with the slow rest:
+    −0.7 … −4.5 measured while those vertices alternated at ratios −8 … −21.
+    """
+    dc = np.asarray(dc, float)
+    a = np.abs(dc)
+    if not len(a) or a.max() <= 0:
+        return float("nan")
+    sel = a >= fraction * a.max()
+    return float(np.min(np.asarray(dP, float)[sel] / dc[sel]))
+
+
+def feedback_step_limit(g: float, beta: float, rho: float, exponential: bool) -> float:
+    r"""Largest dt whose staggered step multiplies a mode of source gain g by a ≥ −rho (inf: no limit).
+
+    With the source held over the step, a mode δ of the chemistry c = P(c)/β with
+    ∂P/∂c δ = g δ is multiplied per step by
+
+    * ``exponential`` (D = 0, the exact update): a = 1 − q (1 − g/β), q = 1 − e^{−β dt};
+      a ≥ −ρ ⇔ q ≤ (1 + ρ) β / (β − g);
+    * implicit Euler (D > 0, diffusion left out, which only damps): a = (1 + g dt)/(1 + β dt);
+      a ≥ −ρ ⇔ dt (−g − ρ β) ≤ 1 + ρ.
+
+    Only a negative feedback, g < −ρ β, limits dt; a positive one (a switch turning on)
+    is bounded by the step's Δs instead.
+
+    >>> from femshell.coupled import feedback_step_limit
+    >>> round(feedback_step_limit(-19.0, 1.0, 1.0, exponential=True), 4)   # a = -1 exactly here
+    0.1054
+    >>> feedback_step_limit(0.5, 1.0, 0.5, exponential=True)
+    inf
+    """
+    if not (math.isfinite(g) and g < -rho * beta) or rho <= 0:
+        return math.inf
+    if exponential and beta > 0:
+        return -math.log1p(-(1.0 + rho) * beta / (beta - g)) / beta
+    return (1.0 + rho) / (-g - rho * beta)
+
+
 @dataclass(frozen=True)
 class TimeStepping:
     """Controls of the time loop (times in 1/β).
@@ -403,6 +466,10 @@ class TimeStepping:
         equilibrium it reaches. Without this the loop creeps towards the fold with ever
         smaller steps. At most one snap is tried per step (where it does not settle the
         cuts go on as usual). ``snap_max_iter = 0`` disables it.
+    feedback_amplification : the next dt keeps the staggering's amplification of an
+        oscillating mode, estimated from the last step, at a ≥ −this (module docstring,
+        :func:`feedback_step_limit`; 0 < value ≤ 1: 1 is the stability limit itself, smaller
+        damps an oscillation faster). 0: no bound.
     max_steps : stop after this many accepted steps in one call of :meth:`CoupledLoop.run`.
     """
 
@@ -426,6 +493,7 @@ class TimeStepping:
     predictor: bool = True
     snap_ds: float = 1e-3
     snap_max_iter: int = 400
+    feedback_amplification: float = 0.5
     max_steps: int | None = None
 
     def __post_init__(self):
@@ -451,6 +519,7 @@ class TimeStepping:
             raise ValueError(f"quasi_newton must be an integer >= 0, got {self.quasi_newton!r}")
         _finite("ramp_ds", self.ramp_ds, 0.0, lo_open=True, text="(0, inf)")
         _finite("snap_ds", self.snap_ds, 0.0)
+        _finite("feedback_amplification", self.feedback_amplification, 0.0, 1.0)
         if int(self.snap_max_iter) != self.snap_max_iter or self.snap_max_iter < 0:
             raise ValueError(f"snap_max_iter must be an integer >= 0, got {self.snap_max_iter!r}")
         if self.max_steps is not None and (int(self.max_steps) != self.max_steps or self.max_steps < 0):
@@ -471,7 +540,8 @@ class StepRecord:
     with c > c*); rate_c, rate_x : the stationarity measures (TimeStepping);
     stable : the Hessian at the equilibrium had no negative eigenvalue; wall_s :
     wall time of the step (s); snapped : the shell jumped to another equilibrium past a
-    fold of the quasi-static path (``TimeStepping.snap_ds``).
+    fold of the quasi-static path (``TimeStepping.snap_ds``); feedback_gain : the source's
+    most negative gain over the step (:func:`feedback_gain`, 1/time), which bounds the next dt.
     """
 
     step: int
@@ -491,6 +561,7 @@ class StepRecord:
     stable: bool | None
     wall_s: float
     snapped: bool = False
+    feedback_gain: float = float("nan")
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -592,6 +663,7 @@ class CoupledLoop:
         self._last_ds = 0.0
         self._u_prev, self._h_prev = None, 0.0
         self._last_rates = (float("nan"), float("nan"))
+        self._last_gain = float("nan")
         self._last_stable = None
         self.s = self.growth.stretch(self.c)
         if equilibrate:
@@ -837,11 +909,16 @@ class CoupledLoop:
             self.stationary_count += 1
         else:
             self.stationary_count = 0
-        # next step: grow while Δs stays small, never beyond a step that had to be cut
+        # next step: grow while Δs stays small, never beyond a step that had to be cut,
+        # and within the stability limit of the staggering (module docstring)
         grow = st.grow if ds <= 0 else min(st.grow, st.safety * st.ds_max / ds)
         nxt = h * max(grow, 0.1)
         if cuts:
             nxt = min(nxt, h)
+        self._last_gain = feedback_gain(self.c - c_old, self.params.source(self.H_vertex) - source)
+        if st.feedback_amplification > 0:
+            nxt = min(nxt, feedback_step_limit(self._last_gain, p.beta, st.feedback_amplification,
+                                               exponential=p.D == 0))
         self.dt = float(min(st.dt_max, max(st.dt_min, nxt)))
         rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
         self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
@@ -863,7 +940,7 @@ class CoupledLoop:
                           max_s=float(self.s.max()), ds=float(self._last_ds), energy=float(self.energy),
                           n_spots=int(n_spots), rate_c=float(self._last_rates[0]),
                           rate_x=float(self._last_rates[1]), stable=self._last_stable, wall_s=float(wall_s),
-                          snapped=bool(snapped))
+                          snapped=bool(snapped), feedback_gain=float(self._last_gain))
 
     # ---- loops --------------------------------------------------------------------------------
     def iterate(self, max_steps: int | None = None):
@@ -988,6 +1065,7 @@ class CoupledLoop:
         self._u_prev = u_prev if u_prev.shape == u.shape else None
         self._h_prev = float(state.get("h_prev", 0.0)) if self._u_prev is not None else 0.0
         self._last_rates = (float("nan"), float("nan"))
+        self._last_gain = float("nan")
         self._last_stable = None
         self.s = self.growth.stretch(self.c)
         self.growth.apply(self.s)

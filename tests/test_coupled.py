@@ -12,7 +12,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from femshell.coupled import (CoupledError, CoupledLoop, GrowthCoupling, InitialSpot, MechanochemicalModel,
-                              TimeStepping, gaussian_spot)
+                              TimeStepping, feedback_gain, feedback_step_limit, gaussian_spot)
 from femshell.io import load_checkpoint, save_checkpoint
 from femshell.mesh.generators import sphere
 
@@ -269,3 +269,50 @@ def test_design_literal_rest_curvature_k0(ball):
     loop.run(max_steps=2)
     assert 0 <= loop.c.max() < 0.25 * p.c_star
     assert np.linalg.norm(loop.points - ball.points, axis=1).max() < 1e-2 * R
+
+
+# ----------------------------------------------------------------------------- stability of the staggering
+
+def _staggered(G, P0, c, dt, exponential):
+    """One step of the loop's chemistry with the source P0 + G c held at its start (β = 1, D = 0 or
+    implicit Euler without diffusion)."""
+    P = P0 + G @ c
+    if exponential:
+        return P + (c - P) * np.exp(-dt)
+    return (c + dt * P) / (1 + dt)
+
+
+@pytest.mark.parametrize("exponential", [True, False])
+def test_feedback_bound_damps_the_oscillation_of_a_stiff_negative_feedback(exponential):
+    # A linear source with a strongly self-limiting ring (gain -20, coupled to its neighbours)
+    # and a slow rest: the fixed point c = (I - G)^-1 P0 is stable for the ODE, but the
+    # staggered step at dt = 1 amplifies the ring's mode (a = 1 - q (1 - g) < -1). With dt
+    # chosen by feedback_gain / feedback_step_limit the iteration reaches the fixed point.
+    rng = np.random.default_rng(3)
+    n = 40
+    G = np.diag(np.full(n, -0.3))
+    ring = np.arange(6)
+    G[np.ix_(ring, ring)] += 0.5 * np.eye(6, k=1) + 0.5 * np.eye(6, k=-1)
+    G[ring, ring] = -20.0
+    P0 = rng.uniform(0.5, 1.0, n)
+    fixed = np.linalg.solve(np.eye(n) - G, P0)
+    c0 = fixed + 0.01 * rng.standard_normal(n)
+
+    c = c0.copy()
+    for _ in range(60):
+        c = _staggered(G, P0, c, 1.0, exponential)
+    assert np.max(np.abs(c - fixed)) > 1.0            # dt = 1 blows the ring up
+
+    c, dt, dts = c0.copy(), 1.0, []
+    for _ in range(300):
+        c_new = _staggered(G, P0, c, dt, exponential)
+        g = feedback_gain(c_new - c, G @ (c_new - c))
+        dts.append(dt)
+        dt = min(1.5 * dt, 1.0, feedback_step_limit(g, 1.0, 0.5, exponential))
+        c = c_new
+    assert np.max(np.abs(c - fixed)) < 1e-8
+    # the steps settle where the stiffest mode of G is damped, |a| < 1, without knowing G
+    lam = np.linalg.eigvals(G).real.min()
+    a = np.exp(-dts[-1]) + (1 - np.exp(-dts[-1])) * lam if exponential else (1 + lam * dts[-1]) / (1 + dts[-1])
+    assert -1.0 < a < 0.0
+    assert dts[-1] > 0.5 * feedback_step_limit(lam, 1.0, 0.5, exponential)   # not needlessly small
