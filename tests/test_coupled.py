@@ -48,6 +48,8 @@ def test_parameter_validation_names_the_parameter():
         MechanochemicalModel(Hs=0.0)
     with pytest.raises(ValueError, match="dt_initial"):
         TimeStepping(dt_initial=10.0, dt_max=1.0)
+    with pytest.raises(ValueError, match=r"feedback_amplification must be a finite number in \[0.0, 1.0\]"):
+        TimeStepping(feedback_amplification=1.5)
     p = MechanochemicalModel(radius=30.0)
     assert p.natural_curvature == pytest.approx(1 / 30) and p.c_max == pytest.approx(0.75)
     assert p.s_max == pytest.approx(1.5)
