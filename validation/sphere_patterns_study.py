@@ -2,7 +2,7 @@ r"""The paper's sphere scenarios on coarser spheres, within a wall-time budget, 
 
 The ``sphere-patterns`` validation case (femshell/validation/sphere_patterns.py) defines the nine
 scenarios of design.md 1.5 and runs them at the paper's resolution at its full level (``spots``:
-45.5 min here). This script runs any of them on a sphere of chosen radius and vertex count for at
+37.7 min here). This script runs any of them on a sphere of chosen radius and vertex count for at
 most ``--wall-time`` seconds each (to t_final or a stationary pattern if that comes first),
 resumable from per-scenario checkpoints, and writes per scenario
 

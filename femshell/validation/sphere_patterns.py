@@ -32,7 +32,7 @@ t = 15 (it ends stationary, so the fixed-point row is exercised) and ``spots`` o
 t = 0.25; these meshes are coarser than the paper's (mean edge 1.5 and 2.0 against 0.72), so their outcomes
 say nothing about the paper's (see "Resolution" below). ``full`` runs all nine at the paper's
 resolution (25 000 vertices on R = 30, the same edge length on R = 15) to t = 100 or
-stationarity. ``spots`` at this resolution took 354 steps, 45.5 min on two cores
+stationarity. ``spots`` at this resolution became stationary after 275 steps, 37.7 min on two cores
 (validation/sphere_patterns_study.py; other scenarios take other step counts). It writes a
 checkpoint per scenario every 10 steps into
 ``OUT_DIR/sphere-patterns-checkpoints`` and resumes from it when run again (a finished scenario is

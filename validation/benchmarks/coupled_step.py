@@ -101,6 +101,21 @@ spots --scale 1.0 --n-vertices 6250 --t-final 100``, same parameters and stop): 
 took a third of the coarse one's steps (mean dt 0.3-0.7 from t = 20 at 25k, 0.05-0.12 at
 2.5k; why is not analysed), so the estimate above, which carries the coarse run's step count
 over to the finer meshes, overestimates their whole run.
+
+None of those runs became stationary: the staggered chemistry step oscillated at the spot's
+edge (``femshell.coupled``, "Why the staggering limits dt"). With the loop's feedback bound on dt
+(2026-11-25, load 1.7-4.4, the three runs partly sharing the machine) every size reaches a
+stationary spot, measured whole (``--sizes 2500 10000 --full 2500 10000 --wall-limit 2400``;
+25 007 through the study as above):
+
+| vertices | ends | steps (rejected) | s per step | setup | whole run |
+|---|---|---|---|---|---|
+| 2 505 | stationary at t = 72.3 | 964 (102) | 0.78 | 11.5 s | **12.7 min** |
+| 10 011 | stationary at t = 10.6 | 176 (12) | 2.66 | 43.3 s | **8.5 min** |
+| 25 007 | stationary at t = 45.2 | 275 | 6-11 | ~170 s | **37.7 min** |
+
+The step counts do not follow the mesh (the coarse spot creeps for longer), so whole runs are
+measured, not estimated.
 """
 
 from __future__ import annotations
