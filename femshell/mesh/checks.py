@@ -38,7 +38,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from ..geometry import fold_angles
+from ..geometry import fold_angles, triangle_area_vectors, triangle_areas
 from .surface import SurfaceMesh
 from .topology import MeshError
 
@@ -102,18 +102,6 @@ def _plural(n: int, word: str, words: str | None = None) -> str:
     return f"{n} such {word if n == 1 else (words or word + 's')}"
 
 
-def triangle_vectors(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Twice-area normal vectors (p1 - p0) x (p2 - p0), shape (m, 3), length² units.
-
-    Its norm is twice the triangle area; its direction is the right-hand normal.
-
-    >>> triangle_vectors(np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
-    array([[0., 0., 1.]])
-    """
-    p = points[triangles]
-    return np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-
-
 def triangle_edge_lengths(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Length of local edge k (opposite local vertex k, topology.py convention), shape (m, 3).
 
@@ -159,14 +147,14 @@ def _component_orientation_scores(points, triangles, topo, label, n_comp, flat_t
     curved component whose flux is negligible falls back to the projected area.
     """
     p = points[triangles]
-    nvec = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])          # 2 * area vector
-    area = 0.5 * np.linalg.norm(nvec, axis=1)
+    av = triangle_area_vectors(points, triangles)
+    area = np.linalg.norm(av, axis=1)
     closed = np.ones(n_comp, bool)
     closed[label[topo.edge_faces[topo.boundary_edges, 0]]] = False
 
     # signed volume: sum of tetrahedra (origin, p0, p1, p2); translation invariant when closed
     vol = np.bincount(label, np.einsum("mi,mi->m", p[:, 0], np.cross(p[:, 1], p[:, 2])), n_comp) / 6.0
-    nz = np.bincount(label, 0.5 * nvec[:, 2], n_comp)
+    nz = np.bincount(label, av[:, 2], n_comp)
 
     lo = np.full((n_comp, 3), np.inf)
     hi = np.full((n_comp, 3), -np.inf)
@@ -178,7 +166,7 @@ def _component_orientation_scores(points, triangles, topo, label, n_comp, flat_t
     comp_area = np.maximum(np.bincount(label, area, n_comp), 1e-300)
     cf = p.mean(axis=1)
     centre = np.column_stack([np.bincount(label, area * cf[:, i], n_comp) for i in range(3)]) / comp_area[:, None]
-    away = np.bincount(label, 0.5 * np.einsum("mi,mi->m", nvec, cf - centre[label]), n_comp)
+    away = np.bincount(label, np.einsum("mi,mi->m", av, cf - centre[label]), n_comp)
     away = np.where(np.abs(away) <= 1e-9 * comp_area * size, nz, away)
 
     score = np.where(closed, vol, np.where(flat, nz, away))
@@ -263,8 +251,8 @@ def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
 
     # ---- stage 3: everything that needs topology and geometry
     problems = []
-    nvec = triangle_vectors(pts, tri)
-    area = 0.5 * np.linalg.norm(nvec, axis=1)
+    av = triangle_area_vectors(pts, tri)
+    area = np.linalg.norm(av, axis=1)
     lengths = triangle_edge_lengths(pts, tri)
     mean_len = float(lengths.mean())
     tiny = DEGENERATE_AREA_FACTOR * mean_len ** 2
@@ -289,14 +277,14 @@ def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
         # triangles disagreeing with the majority are turned over (a tangled mesh),
         # even when the index order looks consistent.
         ok = ~degenerate
-        pos = ok & (nvec[:, 2] > 0)
-        neg = ok & (nvec[:, 2] < 0)
+        pos = ok & (av[:, 2] > 0)
+        neg = ok & (av[:, 2] < 0)
         if pos.any() and neg.any():
             minority = neg if neg.sum() <= pos.sum() else pos
             inv = np.flatnonzero(minority)
             problems.append("inverted triangles: " + _examples(
                 inv, lambda t: f"triangle {t} has normal z {'<' if neg[t] else '>'} 0 "
-                               f"(signed area {0.5 * nvec[t, 2]:.3g}), vertices {tri[t].tolist()}")
+                               f"(signed area {av[t, 2]:.3g}), vertices {tri[t].tolist()}")
                 + f" ({_plural(len(inv), 'triangle')}, against {int((~minority & ok).sum())} of the other sign)")
     else:
         # A triangle turned over onto its neighbour: normals (almost) opposite across
@@ -535,7 +523,7 @@ def quality_report(mesh: SurfaceMesh) -> dict:
     pts, tri = mesh.points, mesh.triangles
     angles = triangle_angles(pts, tri)
     lengths = triangle_edge_lengths(pts, tri)
-    area = 0.5 * np.linalg.norm(triangle_vectors(pts, tri), axis=1)
+    area = triangle_areas(pts, tri)
     semi = 0.5 * lengths.sum(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         inradius = area / semi
