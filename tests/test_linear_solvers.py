@@ -122,6 +122,47 @@ def test_pardiso_refactor_reuses_analysis():
         f.solve(b)
 
 
+# Run in a child process: MKL reads MKL_THREADING_LAYER once, when it is loaded.
+_THREADED_CHILD = """
+import numpy as np, scipy.sparse as sp
+from femshell.solvers.linear import PARALLEL_MIN_NNZ, Refactorizer, _mkl_threads
+m = 160
+T = sp.diags([np.full(m - 1, -1.0), np.full(m, 4.0), np.full(m - 1, -1.0)], [-1, 0, 1])
+S = sp.diags([np.full(m - 1, -1.0), np.full(m - 1, -1.0)], [-1, 1])
+K = sp.kron(sp.kron(sp.eye(m), T) + sp.kron(S, sp.eye(m)), np.full((6, 6), 0.1) + np.eye(6)).tocsr()
+assert sp.triu(K).nnz >= PARALLEL_MIN_NNZ
+r = Refactorizer("pardiso")
+b = np.ones(K.shape[0])
+for k in range(3):
+    Kk = K * (1.0 + 0.1 * k)
+    x = r(Kk).solve(b)
+    print(_mkl_threads(), float(np.abs(Kk @ x - b).max() / np.abs(b).max()))
+"""
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pardiso unavailable")
+def test_threaded_pardiso_refactorises_after_solves():
+    # factorise -> solve -> refactorise of a matrix above PARALLEL_MIN_NNZ with MKL's GNU
+    # OpenMP layer: solves on fewer threads than the analysis made the next refactorisation
+    # segfault (measured at 25k vertices); the thread count is now pinned for every phase
+    import glob
+    import os
+    import subprocess
+    import sys
+
+    if not glob.glob(os.path.join(sys.prefix, "lib", "libmkl_gnu_thread.so*")):
+        pytest.skip("MKL's GNU threading layer is not installed")
+    env = dict(os.environ, MKL_THREADING_LAYER="GNU")
+    out = subprocess.run([sys.executable, "-c", _THREADED_CHILD], env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, f"child exited with {out.returncode}: {out.stderr[-2000:]}"
+    rows = [line.split() for line in out.stdout.split("\n") if line.strip()]
+    assert len(rows) == 3
+    if int(rows[0][0]) < 2:
+        pytest.skip("MKL has one thread here: the threaded path is not exercised")
+    assert all(float(res) < 1e-10 for _, res in rows)
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_refactorizer_inertia_through_a_loss_of_definiteness(backend):
     """A shifted Laplacian swept through its lowest eigenvalues, the way Newton meets a buckling

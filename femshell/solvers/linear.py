@@ -76,7 +76,9 @@ import weakref
 # paths by the memory alignment of its inputs and (2) its OpenMP layer behaves differently
 # with the process's history even at one thread. Strict conditional numerical reproducibility
 # and the sequential threading layer remove both. Must be set before MKL is loaded; set either
-# variable in the environment to override.
+# variable in the environment to override: MKL_THREADING_LAYER=GNU factorises the large
+# Hessians on all cores (a coupled step at 25k vertices: 7.3 → 5.6 s on 2 idle cores, measured
+# with validation/benchmarks/coupled_step.py) and gives up bit-for-bit resumes.
 os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 os.environ.setdefault("MKL_THREADING_LAYER", "SEQUENTIAL")
 
@@ -104,14 +106,14 @@ PARDISO_PERTURBATION_EXPONENT = 13
 #: random test system has at most this relative residual (else: singular)
 PROBE_TOL = 1e-8
 #: PARDISO runs single-threaded below this many stored (upper-triangle) non-zeros and
-#: with all of MKL's threads above; solves (phase 33) always run on SOLVE_THREADS.
-#: Measured on 2 cores shared with other jobs (load 8–10): one thread was faster for
-#: every solve (0.09 vs 0.27 s at 100k unknowns) and for factorisations up to 10k
-#: vertices of a shell-like matrix (1.5 vs 1.8 s); a chemistry-sized matrix (25k
-#: unknowns, 1-ring) took 0.2–0.4 s for factorise + refactorise + 10 solves on one
-#: thread against 1.5–1.9 s on two (idle OpenMP threads spin and compete).
+#: with all of MKL's threads above (only with a threaded MKL layer: femshell selects the
+#: sequential one unless MKL_THREADING_LAYER is set, see above). Measured on 2 cores shared
+#: with other jobs (load 8–10): one thread was faster for factorisations up to 10k vertices
+#: of a shell-like matrix (1.5 vs 1.8 s), and a chemistry-sized matrix (25k unknowns, 1-ring)
+#: took 0.2–0.4 s for factorise + refactorise + 10 solves on one thread against 1.5–1.9 s on
+#: two (idle OpenMP threads spin and compete). Idle, a 25k-vertex shell Hessian (150k
+#: unknowns, 4.2M non-zeros) refactorises in 1.6 s on two threads against 3.0 s on one.
 PARALLEL_MIN_NNZ = 2_000_000
-SOLVE_THREADS = 1
 #: dense fall-back limit for the inertia when SuperLU had to leave the diagonal
 DENSE_INERTIA_LIMIT = 2000
 
@@ -357,9 +359,11 @@ class _Pardiso:
 
     def _call(self, phase, U, b):
         self.solver.set_phase(phase)
-        # the numerical factorisation must not run on fewer threads than the analysis
-        # (PARDISO crashed, measured): both use the count pinned at analysis
-        prev = _mkl_threads(SOLVE_THREADS if phase == 33 else self.threads)
+        # every phase runs on the thread count pinned at the analysis: a factorisation on
+        # fewer threads than the analysis, or a refactorisation after solves on fewer
+        # threads, crashed PARDISO (segfault in the threaded Cholesky, measured with
+        # MKL_THREADING_LAYER=GNU and INTEL). Solves lose nothing (0.09 s either way at 150k unknowns).
+        prev = _mkl_threads(self.threads)
         try:
             return self.solver._call_pardiso(U, b)
         except Exception as exc:

@@ -116,6 +116,13 @@ stationary spot, measured whole (``--sizes 2500 10000 --full 2500 10000 --wall-l
 
 The step counts do not follow the mesh (the coarse spot creeps for longer), so whole runs are
 measured, not estimated.
+
+Threads (2026-11-25, idle, ``--sizes 25000 --full --warmup 3 --steps 6``): femshell selects
+MKL's sequential layer (bit-for-bit resumes, ``femshell.solvers.linear``): 7.32 s per step
+(Cholesky 3.16 s, Hessian 1.86 s, quasi-Newton 1.82 s), setup 82 s. With
+``MKL_THREADING_LAYER=GNU`` in the environment the Cholesky runs on both cores: **5.58 s** per
+step (1.59 s, 1.80 s, 1.74 s), setup 62 s. (Before the fix that pins the thread count for
+every PARDISO phase, that setting segfaulted at 25 007 vertices.)
 """
 
 from __future__ import annotations
