@@ -16,8 +16,9 @@ of the shell grown by s(c):
 4. mechanics: :func:`~femshell.solvers.newton.minimize` with ``stable=True`` warm
    started from u (or from the secant prediction u + (dt/dt_prev)(u − u_prev) when
    that has lower energy): a local minimum, never a saddle. A Newton failure cuts dt
-   and redoes the step from the last accepted state, except where Newton ran out of
-   iterations on a tiny Δs: a fold, past which the minimisation goes on (a snap,
+   and redoes the step from the last accepted state (a Newton that stops making progress
+   gives up early, ``TimeStepping.newton_stall``), except where Newton ran out of
+   iterations or stalled on a tiny Δs: a fold, past which the minimisation goes on (a snap,
    ``TimeStepping.snap_ds``);
 5. accept: t += dt, (c, u) ← (c⁺, u⁺), H from the new shape; the next dt grows by at
    most ``grow`` while Δs stays below ``ds_max`` (dt_next = dt · min(grow, safety · ds_max/Δs)),
@@ -461,13 +462,17 @@ class TimeStepping:
         it has lower energy than u (a grown rest state leaves the old shape compressed,
         near buckling, where Newton from the old shape needs many iterations).
     snap_ds, snap_max_iter : a fold of the quasi-static path. When Newton runs out of
-        iterations on a step whose Δs ≤ ``snap_ds``, no equilibrium is left near the old
+        iterations (or stalls) on a step whose Δs ≤ ``snap_ds``, no equilibrium is left near the old
         shape (a tiny growth increment would otherwise converge in a few iterations): the
         minimisation goes on from Newton's last iterate (lower energy than the start) for
         up to ``snap_max_iter`` more iterations, and the shell snaps to the stable
         equilibrium it reaches. Without this the loop creeps towards the fold with ever
         smaller steps. At most one snap is tried per step (where it does not settle the
         cuts go on as usual). ``snap_max_iter = 0`` disables it.
+    newton_stall : a Newton solve that has made no progress for this many iterations (the
+        residual not halved, the energy down by less than 1e-7 of itself) gives up and the step
+        is cut, instead of running to ``newton_max_iter`` (``minimize(stall=...)``; not in a
+        snap, which may creep legitimately). 0: never.
     feedback_amplification : the next dt keeps the staggering's amplification of an
         oscillating mode, estimated from the last step, at a ≥ −this (module docstring,
         :func:`feedback_step_limit`; 0 < value ≤ 1: 1 is the stability limit itself, smaller
@@ -495,6 +500,7 @@ class TimeStepping:
     predictor: bool = True
     snap_ds: float = 1e-3
     snap_max_iter: int = 400
+    newton_stall: int = 10
     feedback_amplification: float = 0.5
     max_steps: int | None = None
 
@@ -519,6 +525,8 @@ class TimeStepping:
             raise ValueError(f"newton_max_iter must be an integer >= 1, got {self.newton_max_iter!r}")
         if int(self.quasi_newton) != self.quasi_newton or self.quasi_newton < 0:
             raise ValueError(f"quasi_newton must be an integer >= 0, got {self.quasi_newton!r}")
+        if int(self.newton_stall) != self.newton_stall or self.newton_stall < 0:
+            raise ValueError(f"newton_stall must be an integer >= 0, got {self.newton_stall!r}")
         _finite("ramp_ds", self.ramp_ds, 0.0, lo_open=True, text="(0, inf)")
         _finite("snap_ds", self.snap_ds, 0.0)
         _finite("feedback_amplification", self.feedback_amplification, 0.0, 1.0)
@@ -693,18 +701,20 @@ class CoupledLoop:
             unit = self.params.E * self.params.h0 * math.sqrt(float(np.sum(self.shell.rest.area)))
         return self.stepping.newton_atol_strain * unit
 
-    def _newton(self, u_start, max_iter=None, residual_scale=None):
+    def _newton(self, u_start, max_iter=None, residual_scale=None, stall=True):
         st = self.stepping
         return minimize(self.shell, u_start, stable=True, rtol=st.newton_rtol, atol=self._atol,
                         max_iter=int(max_iter or st.newton_max_iter), residual_scale=residual_scale,
-                        factorizers=self._factorizers, quasi_newton=st.quasi_newton, log=None)
+                        factorizers=self._factorizers, quasi_newton=st.quasi_newton,
+                        stall=(st.newton_stall or None) if stall else None, log=None)
 
     def _snap_applies(self, failed: NewtonError, ds: float) -> bool:
-        """Newton ran out of iterations (not a failed line search) at Δs ≤ snap_ds, snaps enabled."""
+        """Newton ran out of iterations or stalled (not a failed line search) at Δs ≤ snap_ds, snaps enabled."""
         st = self.stepping
         last = failed.result
         return not (st.snap_max_iter == 0 or ds > st.snap_ds or last is None
-                    or last.iterations < st.newton_max_iter or not np.all(np.isfinite(last.u)))
+                    or (last.iterations < st.newton_max_iter and not failed.stalled)
+                    or not np.all(np.isfinite(last.u)))
 
     def _snap(self, last, ds: float):
         """The stable equilibrium past a fold (``TimeStepping.snap_ds``), or None if it does not settle.
@@ -717,7 +727,7 @@ class CoupledLoop:
         self._say(f"  step {self.step + 1} t = {self.t:.6g}: no equilibrium near the old shape at Δs = {ds:.3g} "
                   f"(a fold): minimising on for up to {st.snap_max_iter} iterations")
         try:
-            res = self._newton(last.u, max_iter=st.snap_max_iter, residual_scale=last.residual_scale)
+            res = self._newton(last.u, max_iter=st.snap_max_iter, residual_scale=last.residual_scale, stall=False)
         except NewtonError as exc:
             self._say(f"  step {self.step + 1}: the snap did not settle: {exc}")
             return None

@@ -247,6 +247,17 @@ def test_snap_minimises_on_to_the_equilibrium_newton_ran_out_of_iterations_for(b
         CoupledLoop.from_state_dict(ball, p, states[2], small).advance()
 
 
+def test_a_stalled_newton_at_a_small_stretch_step_snaps_a_failed_line_search_does_not(ball, spot_run):
+    from femshell.solvers.newton import NewtonError, NewtonResult
+
+    p, st, loop, initial, states, records = spot_run
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], TimeStepping(t_final=10.0, snap_ds=1e-3))
+    last = NewtonResult(u=lp.u, converged=False, iterations=10, energy=0.0, residual=1.0, residual_scale=1.0)
+    assert lp._snap_applies(NewtonError("stalled", last, stalled=True), ds=1e-4)
+    assert not lp._snap_applies(NewtonError("line search failed", last), ds=1e-4)
+    assert not lp._snap_applies(NewtonError("stalled", last, stalled=True), ds=1e-2)    # above snap_ds
+
+
 def test_steep_switch_strong_source_fast_diffusion_adapts(ball):
     # b = 1000: s jumps across c* within 0.001; w = 1000: c_max = 50; D = 100; dt starts at 1
     p = MechanochemicalModel(h0=H0, radius=R, lam_min=14.25, b=1000.0, w=1000.0, D=100.0)

@@ -276,3 +276,43 @@ def test_quasi_newton_on_the_held_factorisation_reaches_newtons_equilibrium_with
     assert fresh.quasi_newton_iterations == 0 and fresh.iterations > 0
     for f in facs:
         f.free()
+
+
+class MisscaledQuadratic:
+    """Π = ½|u|² with a Hessian 1e10 times too stiff: every Newton step is accepted and lowers Π,
+    but by a relative 2e-10 only, and the residual hardly falls: Newton creeps, as it does with
+    shifted steps about a near-singular shell Hessian."""
+
+    def __init__(self, n=5):
+        self.n = n
+
+    def energy(self, u):
+        return float(0.5 * u @ u)
+
+    def gradient(self, u):
+        return u.copy()
+
+    def hessian(self, u):
+        return sp.identity(self.n, format="csr") * 1e10
+
+
+def test_a_creeping_newton_gives_up_after_the_stall_window_and_a_converging_one_does_not():
+    u0 = np.linspace(1.0, 2.0, 5)
+    with pytest.raises(NewtonError, match="stalled at iteration 6") as err:
+        minimize(MisscaledQuadratic(), u0, max_iter=60, stall=6, log=None)
+    assert err.value.stalled and err.value.result.iterations == 6
+    with pytest.raises(NewtonError, match="did not converge in 60") as err:   # without: the whole budget
+        minimize(MisscaledQuadratic(), u0, max_iter=60, log=None)
+    assert not err.value.stalled and err.value.result.iterations == 60
+    # problems that converge are not stopped, also where Newton needs many damped iterations
+    prob = NonlinearChain()
+    for lam in (1.0, 8.0, 40.0):
+        prob.load_factor = lam
+        a = minimize(prob, np.zeros(prob.n), rtol=1e-12, stall=2, log=None)
+        b = minimize(prob, np.zeros(prob.n), rtol=1e-12, log=None)
+        assert a.converged and a.iterations == b.iterations and np.array_equal(a.u, b.u)
+    springs = SofteningSprings(np.linspace(0.5, 1.0, 8))
+    springs.load_factor = 0.99 * springs.limit_load()        # near the limit point: a long Newton path
+    a = minimize(springs, np.zeros(8), rtol=1e-10, stall=3, log=None)
+    b = minimize(springs, np.zeros(8), rtol=1e-10, log=None)
+    assert a.converged and a.iterations == b.iterations > 3

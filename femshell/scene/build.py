@@ -309,8 +309,8 @@ def coupled_parameters(scene: Scene):
         raise SceneError(f"{scene.label}: [growth]/[chemistry]: {exc}") from None
     kw = {k: so[k] for k in ("t_final", "dt_initial", "dt_min", "dt_max", "ds_max", "grow", "safety", "max_cuts",
                              "stationary_rate_c", "stationary_rate_x", "stationary_steps", "newton_atol_strain",
-                             "ramp_ds", "snap_ds", "snap_max_iter", "quasi_newton", "feedback_amplification",
-                             "max_steps")}
+                             "ramp_ds", "snap_ds", "snap_max_iter", "quasi_newton", "newton_stall",
+                             "feedback_amplification", "max_steps")}
     if so.get("newton_rtol") is not None:
         kw["newton_rtol"] = so["newton_rtol"]
     if so.get("newton_max_iter") is not None:

@@ -280,6 +280,8 @@ SOLVER_KEYS = {
         "snap_max_iter": Spec(I, 400, "Newton iterations of a snap past a fold (0: never snap)", lo=0),
         "quasi_newton": Spec(I, 12, "quasi-Newton iterations on the last step's factorised Hessian before "
                                     "Newton (0: plain Newton)", lo=0),
+        "newton_stall": Spec(I, 10, "a Newton solve with no progress for this many iterations gives up and the "
+                                    "step is cut (0: never)", lo=0),
         "feedback_amplification": Spec(F, 0.5, "dt keeps an oscillation of the staggered chemistry-mechanics step "
                                                "damped: amplification >= -this (0: no bound)", lo=0.0, hi=1.0),
         "max_steps": Spec(I, None, "stop after this many steps (continue with --resume)", lo=0),
