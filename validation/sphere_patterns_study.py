@@ -141,7 +141,7 @@ def main(argv=None):
             ck = args.checkpoints / f"{name}-R{radius:g}-n{nv}.npz"
             r = run_scenario(SCENARIOS[name], t_final=args.t_final, n_vertices=nv,
                              radius=radius, checkpoint=ck, wall_time=args.wall_time,
-                             log=lambda s: print(s, flush=True) if s.startswith(("step", "initial")) else None)
+                             log=lambda s: print(s, flush=True) if s.lstrip().startswith(("step", "initial")) else None)
             stem = f"{name}-R{radius:g}-n{nv}"
             rec = {**record(r, radius, args.wall_time, model_of(SCENARIOS[name], radius)), "stem": stem}
             atomic_write_json(RESULTS / f"{stem}.json", rec)
