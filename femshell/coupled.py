@@ -551,7 +551,9 @@ class StepRecord:
     stable : the Hessian at the equilibrium had no negative eigenvalue; wall_s :
     wall time of the step (s); snapped : the shell jumped to another equilibrium past a
     fold of the quasi-static path (``TimeStepping.snap_ds``); feedback_gain : the source's
-    most negative gain over the step (:func:`feedback_gain`, 1/time), which bounds the next dt.
+    most negative gain over the step (:func:`feedback_gain`, 1/time), which bounds the next dt;
+    non_elliptic : elements whose membrane law is not elliptic (St Venant–Kirchhoff compressed
+    past its limit, :meth:`~femshell.shell.model.ShellModel.non_elliptic_elements`).
     """
 
     step: int
@@ -572,6 +574,7 @@ class StepRecord:
     wall_s: float
     snapped: bool = False
     feedback_gain: float = float("nan")
+    non_elliptic: int = 0
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -752,6 +755,7 @@ class CoupledLoop:
     def _update_curvature(self):
         self.H, self.H_vertex = self.growth.mean_curvature(self.u)
         self.energy = float(self.shell.strain_energy(self.u))
+        self.non_elliptic = len(self.shell.non_elliptic_elements(self.u))
 
     @property
     def points(self) -> np.ndarray:
@@ -911,7 +915,15 @@ class CoupledLoop:
         self.newton_total += res.iterations
         self._last_stable = res.stable
         self._last_ds = ds
+        was_elliptic = self.non_elliptic == 0
         self._update_curvature()
+        if was_elliptic and self.non_elliptic:
+            mat = self.shell.material
+            limit = math.sqrt((mat.alpha + mat.beta) / (mat.alpha + 2 * mat.beta))
+            self._say(f"  step {self.step} t = {self.t:.6g}: {self.non_elliptic} elements are compressed past the "
+                      f"St Venant–Kirchhoff membrane's ellipticity limit (equibiaxial stretch {limit:.3g}): "
+                      "a triangle there can collapse on the mesh scale, and Newton then stalls; "
+                      "membrane_law = 'neo-hookean' stays elliptic")
         c_scale = max(float(np.max(np.abs(self.c))) if len(self.c) else 0.0,
                       1e-2 * p.c_max if math.isfinite(p.c_max) else 0.0, 1e-300)
         rate_c = float(np.max(np.abs(self.c - c_old))) / (h * c_scale) if len(self.c) else 0.0
@@ -952,7 +964,8 @@ class CoupledLoop:
                           max_s=float(self.s.max()), ds=float(self._last_ds), energy=float(self.energy),
                           n_spots=int(n_spots), rate_c=float(self._last_rates[0]),
                           rate_x=float(self._last_rates[1]), stable=self._last_stable, wall_s=float(wall_s),
-                          snapped=bool(snapped), feedback_gain=float(self._last_gain))
+                          snapped=bool(snapped), feedback_gain=float(self._last_gain),
+                          non_elliptic=int(self.non_elliptic))
 
     # ---- loops --------------------------------------------------------------------------------
     def iterate(self, max_steps: int | None = None):

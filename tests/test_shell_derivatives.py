@@ -176,3 +176,22 @@ def test_compressed_membrane_ellipticity(law, stable):
     in_plane = np.flatnonzero((free_z < 3 * n) & (free_z % 3 != 2))   # x, y of free vertices only
     n_negative = factorize(K[in_plane][:, in_plane].tocsc(), kind="symmetric_indefinite").inertia[1]
     assert (n_negative == 0) == stable
+    n_flagged = len(model.non_elliptic_elements(model.initial_unknowns()))
+    assert n_flagged == (0 if stable else len(mesh.triangles))
+
+
+@pytest.mark.parametrize("nu", [0.3, 0.5])
+def test_cheap_non_elliptic_check_agrees_with_the_full_acoustic_tensor(nu):
+    """Material.non_elliptic (a lower bound, full evaluation only where it is negative) against
+    ellipticity_margin < 0 on random metric ratios C = ā⁻¹a (not symmetric) and at the equibiaxial limit."""
+    mat = Material(1.0, nu)
+    rng = np.random.default_rng(3)
+    F, G = rng.uniform(0.5, 1.3, (4000, 2, 2)), rng.uniform(0.5, 1.5, (4000, 2, 2))
+    abar = np.einsum("nij,nkj->nik", G, G) + 0.1 * np.eye(2)               # rest metric
+    a = np.einsum("nji,njk,nkl->nil", G, np.einsum("nij,nkj->nik", F, F), G)   # current metric
+    C = np.linalg.solve(abar, a)
+    full = mat.ellipticity_margin(C) < 0
+    assert 0.1 < full.mean() < 0.9
+    assert np.array_equal(mat.non_elliptic(C), full)
+    lim2 = (mat.alpha + mat.beta) / (mat.alpha + 2 * mat.beta)
+    assert mat.non_elliptic(np.stack([np.eye(2) * (lim2 - 1e-6), np.eye(2) * (lim2 + 1e-6)])).tolist() == [True, False]

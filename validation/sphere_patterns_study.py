@@ -93,6 +93,11 @@ def profile_plot(rec: dict, path: Path, title: str):
     plt.close(fig)
 
 
+def law_tag(rec: dict) -> str:
+    """The table's tag of a neo-Hookean run; design.md's St Venant–Kirchhoff runs are untagged."""
+    return " (neo-Hookean)" if rec.get("membrane_law", "svk") == "neo-hookean" else ""
+
+
 def table(records: list) -> str:
     fmt = (lambda x, f="{:.3g}": "–" if x is None else f.format(x))
     lines = ["| scenario | the paper | R, vertices | ended | t | N_sp (ridges) | patterned | spot radius | "
@@ -101,7 +106,7 @@ def table(records: list) -> str:
     order = {n: k for k, n in enumerate(SCENARIOS)}
     for d in sorted(records, key=lambda d: (order.get(d["scenario"], 99), d["n_vertices"])):
         ok = d["negative_c"] == 0 and d["non_finite"] == 0 and d["saddles"] == 0 and d["status"] != "failed"
-        lines.append(f"| {d['scenario']} | {d['paper']} | {d['radius']:g}, {d['n_vertices']} | {d['status']} | "
+        lines.append(f"| {d['scenario']}{law_tag(d)} | {d['paper']} | {d['radius']:g}, {d['n_vertices']} | {d['status']} | "
                      f"{d['t']:.3g} | {d['n_spots']} ({d['n_ridges']}) | {d['fraction_patterned']:.3f} | "
                      f"{fmt(d['spot_radius'])} | {fmt(d['spacing'])} | {d['max_c'] / d['c_star']:.3g} | "
                      f"{d['max_H']:.3g} | {'ok' if ok else 'VIOLATED'} |")
@@ -125,6 +130,8 @@ def main(argv=None):
     ap.add_argument("--n-vertices", type=int, default=2700, help="vertices on a sphere of radius 15")
     ap.add_argument("--t-final", type=float, default=100.0)
     ap.add_argument("--wall-time", type=float, default=900.0, help="seconds per scenario (this call)")
+    ap.add_argument("--membrane-law", choices=("svk", "neo-hookean"), default="svk",
+                    help="membrane law (design.md: svk; neo-hookean stays elliptic under compression)")
     ap.add_argument("--checkpoints", type=Path, default=Path("validation-out/sphere-patterns-study"))
     ap.add_argument("--doc", type=Path, default=None, help="markdown file whose generated table to rewrite")
     ap.add_argument("--table-only", action="store_true")
@@ -138,14 +145,15 @@ def main(argv=None):
             print(f"== {name}", flush=True)
             radius = SCENARIOS[name].radius * args.scale
             nv = int(round(args.n_vertices * (radius / 15.0) ** 2))
-            ck = args.checkpoints / f"{name}-R{radius:g}-n{nv}.npz"
-            r = run_scenario(SCENARIOS[name], t_final=args.t_final, n_vertices=nv,
+            stem = f"{name}-R{radius:g}-n{nv}" + ("-nh" if args.membrane_law == "neo-hookean" else "")
+            ck = args.checkpoints / f"{stem}.npz"
+            r = run_scenario(SCENARIOS[name], t_final=args.t_final, n_vertices=nv, membrane_law=args.membrane_law,
                              radius=radius, checkpoint=ck, wall_time=args.wall_time,
                              log=lambda s: print(s, flush=True) if s.lstrip().startswith(("step", "initial")) else None)
-            stem = f"{name}-R{radius:g}-n{nv}"
-            rec = {**record(r, radius, args.wall_time, model_of(SCENARIOS[name], radius)), "stem": stem}
+            rec = {**record(r, radius, args.wall_time, model_of(SCENARIOS[name], radius)), "stem": stem,
+                   "membrane_law": args.membrane_law}
             atomic_write_json(RESULTS / f"{stem}.json", rec)
-            title = f"{name}: R = {radius:g}, {r['n_vertices']} vertices, t = {r['t']:.3g}, N_sp = {rec['n_spots']}"
+            title = f"{name}{law_tag(rec)}: R = {radius:g}, {r['n_vertices']} vertices, t = {r['t']:.3g}, N_sp = {rec['n_spots']}"
             top_view(r["points"], r["triangles"], ("c", r["c"]), IMAGES / f"{stem}-top.png", title=title,
                      clim=(0.0, r["c_max"]))
             side_view(r["points"], r["triangles"], IMAGES / f"{stem}-side.png", title=title)

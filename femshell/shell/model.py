@@ -100,6 +100,31 @@ class Material:
         smallest = 0.5 * tr - np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
         return smallest.min(axis=1) / be
 
+    def non_elliptic(self, C) -> np.ndarray:
+        r"""``ellipticity_margin(C) < 0`` (bool per element), evaluated in full only where a lower
+        bound of the margin is negative. With :math:`\lambda_1^2 \le \lambda_2^2` the eigenvalues
+        of C, dropping the positive semi-definite dyad and using :math:`n^T(F^2 - I)n \ge
+        \lambda_1^2 - 1` in the acoustic tensor gives
+
+        .. math:: A(n) \succeq \big(\beta (2\lambda_1^2 - 1) + \tfrac{\alpha}{2}(\lambda_1^2 + \lambda_2^2 - 2)\big) I,
+
+        which is exact under equibiaxial compression; elements where it is positive are elliptic.
+        The cheap check for every step of a run.
+
+        >>> Material(nu=0.5).non_elliptic(np.stack([np.eye(2) * 0.7, np.eye(2) * 0.8])).tolist()
+        [True, False]
+        """
+        C = np.asarray(C, dtype=float).reshape(-1, 2, 2)
+        out = np.zeros(len(C), bool)
+        if self.law != "svk":
+            return out
+        tr, det = C[:, 0, 0] + C[:, 1, 1], C[:, 0, 0] * C[:, 1, 1] - C[:, 0, 1] * C[:, 1, 0]
+        smallest = 0.5 * tr - np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+        bound = self.beta * (2.0 * smallest - 1.0) + 0.5 * self.alpha * (tr - 2.0)
+        doubtful = np.flatnonzero(bound < 0.0)
+        out[doubtful] = self.ellipticity_margin(C[doubtful]) < 0
+        return out
+
     def bending_stiffness(self, h: float) -> float:
         """B = E h³ / (12 (1 − ν²))."""
         return self.E * h**3 / (12.0 * (1.0 - self.nu**2))
@@ -300,6 +325,14 @@ class ShellModel:
         the membrane law is not elliptic: results there depend on the mesh)."""
         a, _ = self.fundamental_forms(u)
         return self.material.ellipticity_margin(np.linalg.solve(self.rest.metric, np.asarray(a)))
+
+    def non_elliptic_elements(self, u) -> np.ndarray:
+        """Indices of the elements whose membrane law is not elliptic at state u
+        (:meth:`Material.non_elliptic`; the cheap check for every step of a run)."""
+        if self.material.law != "svk":
+            return np.zeros(0, np.int64)
+        a, _ = self.fundamental_forms(u)
+        return np.flatnonzero(self.material.non_elliptic(np.linalg.solve(self.rest.metric, np.asarray(a))))
 
     def fundamental_forms(self, u):
         """Current first and second fundamental forms per element, (m,2,2) each."""
