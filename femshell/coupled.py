@@ -690,6 +690,13 @@ class CoupledLoop:
         if self.log:
             self.log(msg)
 
+    def _non_elliptic_hint(self) -> str:
+        """Why a step may fail that the user can act on: St Venant–Kirchhoff past its limit."""
+        if not self.non_elliptic:
+            return ""
+        return (f"; {self.non_elliptic} elements of the last accepted state are compressed past the St Venant–"
+                "Kirchhoff ellipticity limit, where triangles can collapse: membrane_law = 'neo-hookean' stays elliptic")
+
     def _residual_floor(self) -> float:
         """atol of Newton: newton_atol_strain × |∇Π| of a uniform unit strain (by a 1e-3 difference)."""
         u0 = self.shell.initial_unknowns()
@@ -850,7 +857,8 @@ class CoupledLoop:
             if h < st.dt_min * (1 - 1e-12) and not last:
                 self.growth.apply(self.s)
                 raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: dt = {h:.3g} fell below dt_min = "
-                                   f"{st.dt_min:.3g} ({reason}); the last accepted state is kept")
+                                   f"{st.dt_min:.3g} ({reason}); the last accepted state is kept"
+                                   + self._non_elliptic_hint())
             try:
                 c_new = self.chemistry.step(self.c, h, source=source, points=points)
             except (ValueError, FloatingPointError, ArithmeticError) as exc:
@@ -893,7 +901,8 @@ class CoupledLoop:
             self.n_rejected += 1
             if cuts > st.max_cuts:
                 raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g} failed after {st.max_cuts} cuts "
-                                   f"(last dt = {h:.3g}: {reason}); the last accepted state is kept")
+                                   f"(last dt = {h:.3g}: {reason}); the last accepted state is kept"
+                                   + self._non_elliptic_hint())
             factor = 0.5
             if math.isfinite(ds) and ds > st.ds_max:
                 factor = min(0.5, max(0.1, st.safety * st.ds_max / ds))

@@ -209,6 +209,27 @@ def test_a_step_that_cannot_be_made_keeps_the_last_state(ball, spot_run):
     assert res.steps == 0 and not saved                      # nothing new to checkpoint
     with pytest.raises(CoupledError, match="cuts"):
         lp.advance()
+    assert "ellipticity" not in res.message
+
+
+def test_a_failed_step_names_a_membrane_compressed_past_its_ellipticity_limit(ball, spot_run):
+    """The sphere shrunk to 0.8 of its radius (equibiaxial stretch 0.8 < 0.866, SVK at ν = 0.5): the loop
+    counts the non-elliptic elements and a failed step says so; with the neo-Hookean law it does not."""
+    p, st, loop, initial, states, records = spot_run
+    strict = TimeStepping(t_final=10.0, dt_initial=1.0, ds_max=1e-4, max_cuts=1)
+    for law in ("svk", "neo-hookean"):
+        lp = CoupledLoop.from_state_dict(ball, replace(p, membrane_law=law), initial["state"], strict)
+        q = lp.shell.full(lp.u)
+        q[: 3 * ball.n_vertices] *= 0.8
+        lp.load_state_dict({**initial["state"], "u": q[lp.shell.free]})
+        res = lp.run()
+        assert res.status == "failed"
+        if law == "svk":
+            assert lp.non_elliptic > 0.9 * len(ball.triangles)
+            assert lp.non_elliptic == int(np.sum(lp.shell.membrane_ellipticity(lp.u) < 0))
+            assert "ellipticity limit" in res.message and "neo-hookean" in res.message
+        else:
+            assert lp.non_elliptic == 0 and "ellipticity" not in res.message
 
 
 def test_quasi_newton_start_reaches_the_state_plain_newton_reaches(ball, spot_run):
