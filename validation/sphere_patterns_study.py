@@ -153,7 +153,7 @@ def main(argv=None):
             rec = {**record(r, radius, args.wall_time, model_of(SCENARIOS[name], radius)), "stem": stem,
                    "membrane_law": args.membrane_law}
             atomic_write_json(RESULTS / f"{stem}.json", rec)
-            title = f"{name}{law_tag(rec)}: R = {radius:g}, {r['n_vertices']} vertices, t = {r['t']:.3g}, N_sp = {rec['n_spots']}"
+            title = f"{name}{law_tag(rec)}\nR = {radius:g}, {r['n_vertices']} vertices, t = {r['t']:.3g}, N_sp = {rec['n_spots']}"
             top_view(r["points"], r["triangles"], ("c", r["c"]), IMAGES / f"{stem}-top.png", title=title,
                      clim=(0.0, r["c_max"]))
             side_view(r["points"], r["triangles"], IMAGES / f"{stem}-side.png", title=title)
