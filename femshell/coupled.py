@@ -684,11 +684,23 @@ class CoupledLoop:
         else:
             self.growth.apply(self.s)
         self._update_curvature()
+        if equilibrate:
+            self._say_non_elliptic()
 
     # ---- helpers ------------------------------------------------------------------------------
     def _say(self, msg):
         if self.log:
             self.log(msg)
+
+    def _say_non_elliptic(self):
+        """Log the elements of the current state that are compressed past SVK's limit, if any."""
+        if self.non_elliptic:
+            mat = self.shell.material
+            limit = math.sqrt((mat.alpha + mat.beta) / (mat.alpha + 2 * mat.beta))
+            self._say(f"  step {self.step} t = {self.t:.6g}: {self.non_elliptic} elements are compressed past the "
+                      f"St Venant–Kirchhoff membrane's ellipticity limit (equibiaxial stretch {limit:.3g}): "
+                      "a triangle there can collapse on the mesh scale, and Newton then stalls; "
+                      "membrane_law = 'neo-hookean' stays elliptic")
 
     def _non_elliptic_hint(self) -> str:
         """Why a step may fail that the user can act on: St Venant–Kirchhoff past its limit."""
@@ -926,13 +938,8 @@ class CoupledLoop:
         self._last_ds = ds
         was_elliptic = self.non_elliptic == 0
         self._update_curvature()
-        if was_elliptic and self.non_elliptic:
-            mat = self.shell.material
-            limit = math.sqrt((mat.alpha + mat.beta) / (mat.alpha + 2 * mat.beta))
-            self._say(f"  step {self.step} t = {self.t:.6g}: {self.non_elliptic} elements are compressed past the "
-                      f"St Venant–Kirchhoff membrane's ellipticity limit (equibiaxial stretch {limit:.3g}): "
-                      "a triangle there can collapse on the mesh scale, and Newton then stalls; "
-                      "membrane_law = 'neo-hookean' stays elliptic")
+        if was_elliptic:
+            self._say_non_elliptic()
         c_scale = max(float(np.max(np.abs(self.c))) if len(self.c) else 0.0,
                       1e-2 * p.c_max if math.isfinite(p.c_max) else 0.0, 1e-300)
         rate_c = float(np.max(np.abs(self.c - c_old))) / (h * c_scale) if len(self.c) else 0.0

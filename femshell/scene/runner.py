@@ -541,7 +541,7 @@ class TimeRunner(BaseRunner):
         return {"t": lp.t, "max_c": float(lp.c.max()), "min_c": float(lp.c.min()), "max_H": float(lp.H_vertex.max()),
                 "min_H": float(lp.H_vertex.min()), "energy": lp.energy, "max_stretch": float(lp.s.max()),
                 "radius_min": float(r.min()), "radius_max": float(r.max()), "rejected_steps": lp.n_rejected,
-                "snaps": lp.n_snaps,
+                "snaps": lp.n_snaps, "non_elliptic_elements": int(lp.non_elliptic),
                 "stationary": bool(lp.is_stationary), "c_max_theory": lp.params.c_max, "pattern": pattern}
 
     def report_lines(self, fin):
@@ -550,9 +550,14 @@ class TimeRunner(BaseRunner):
         if pat["n_spots"]:
             extra = (f", spot radius {pat['spot_radius']:.3g}, spacing {pat['spacing']:.3g}" if pat["spot_radius"]
                      else "")
-        return [f"t = {fin['t']:.6g}: max c {fin['max_c']:.3g}, max H {fin['max_H']:.3g}; pattern: {pat['n_spots']} "
-                f"region(s) with c > c* ({pat['kind']}, {pat['n_ridges']} ridges), {100 * pat['fraction_patterned']:.1f} % "
-                f"of the area{extra}"]
+        lines = [f"t = {fin['t']:.6g}: max c {fin['max_c']:.3g}, max H {fin['max_H']:.3g}; pattern: {pat['n_spots']} "
+                 f"region(s) with c > c* ({pat['kind']}, {pat['n_ridges']} ridges), {100 * pat['fraction_patterned']:.1f} % "
+                 f"of the area{extra}"]
+        if fin["non_elliptic_elements"]:
+            lines.append(f"{fin['non_elliptic_elements']} elements are compressed past the St Venant–Kirchhoff "
+                         "ellipticity limit: the shape there depends on the mesh (material.law = \"neo-hookean\" "
+                         "stays elliptic)")
+        return lines
 
     def pictures(self):
         from .. import viz
