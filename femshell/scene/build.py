@@ -406,7 +406,8 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
     lines.append(f"  mesh       {m['kind']}({args}): {mesh.n_vertices} vertices, {mesh.n_triangles} triangles, "
                  f"{t.n_edges} edges; " + (f"boundary curves {', '.join(curves)}" if curves else "closed (no boundary)"))
     mat, sh = d["material"], d["shell"]
-    lines.append(f"  shell      Kirchhoff-Love mid-edge element, E={mat['E']:g} nu={mat['nu']:g} h={sh['thickness']:g} "
+    lines.append(f"  shell      Kirchhoff-Love mid-edge element, E={mat['E']:g} nu={mat['nu']:g} "
+                 f"membrane={mat.get('law', 'svk')} h={sh['thickness']:g} "
                  f"thickness_mode={sh['thickness_mode']} rest curvature={sh['natural_curvature']}")
     lines.append(f"  unknowns   {unk['free']} free of {unk['total']} (3 per vertex + 1 per edge; "
                  f"{unk['positions_fixed']} position components and {unk['angles_fixed']} edge angles fixed"
