@@ -695,8 +695,7 @@ class CoupledLoop:
     def _say_non_elliptic(self):
         """Log the elements of the current state that are compressed past SVK's limit, if any."""
         if self.non_elliptic:
-            mat = self.shell.material
-            limit = math.sqrt((mat.alpha + mat.beta) / (mat.alpha + 2 * mat.beta))
+            limit = self.shell.material.svk_ellipticity_stretch
             self._say(f"  step {self.step} t = {self.t:.6g}: {self.non_elliptic} elements are compressed past the "
                       f"St Venant–Kirchhoff membrane's ellipticity limit (equibiaxial stretch {limit:.3g}): "
                       "a triangle there can collapse on the mesh scale, and Newton then stalls; "

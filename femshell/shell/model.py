@@ -21,6 +21,7 @@ True
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,6 +100,23 @@ class Material:
         det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
         smallest = 0.5 * tr - np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
         return smallest.min(axis=1) / be
+
+    @property
+    def svk_ellipticity_stretch(self) -> float:
+        r"""Principal stretch (current/target) below which the St Venant–Kirchhoff membrane law loses
+        ellipticity under equibiaxial compression: :math:`\sqrt{(\alpha + \beta)/(\alpha + 2\beta)}`.
+
+        With M = ā⁻¹a − I and W = (α/2)(tr M)² + β tr M² (design.md 1.2), the state a = λ² ā perturbed
+        by the deformation gradient λ(I + G) of a plane wave, G = a⊗n, has the second variation
+        W₂ = 2αλ⁴(a·n)² + βλ⁴|G + Gᵀ|² + 2(α + β)(λ² − 1)λ²|a|². For a shear wave (a ⊥ n,
+        |G + Gᵀ|² = 2|a|²) it vanishes at λ² = (α + β)/(α + 2β). Below it a compressed membrane is
+        unstable at every wavelength, the shortest (the mesh size) first: a material instability of
+        the SVK law, not a buckling of the shell.
+
+        >>> round(Material(nu=0.5).svk_ellipticity_stretch, 4)     # √(3/4)
+        0.866
+        """
+        return math.sqrt((self.alpha + self.beta) / (self.alpha + 2.0 * self.beta))
 
     def non_elliptic(self, C) -> np.ndarray:
         r"""``ellipticity_margin(C) < 0`` (bool per element), evaluated in full only where a lower
@@ -323,16 +341,19 @@ class ShellModel:
     def membrane_ellipticity(self, u) -> np.ndarray:
         """:meth:`Material.ellipticity_margin` of every element at state u, C = ā⁻¹a (negative where
         the membrane law is not elliptic: results there depend on the mesh)."""
-        a, _ = self.fundamental_forms(u)
-        return self.material.ellipticity_margin(np.linalg.solve(self.rest.metric, np.asarray(a)))
+        return self.material.ellipticity_margin(self._metric_ratio(u))
 
     def non_elliptic_elements(self, u) -> np.ndarray:
         """Indices of the elements whose membrane law is not elliptic at state u
         (:meth:`Material.non_elliptic`; the cheap check for every step of a run)."""
         if self.material.law != "svk":
             return np.zeros(0, np.int64)
+        return np.flatnonzero(self.material.non_elliptic(self._metric_ratio(u)))
+
+    def _metric_ratio(self, u) -> np.ndarray:
+        """C = ā⁻¹a per element (m, 2, 2) at state u."""
         a, _ = self.fundamental_forms(u)
-        return np.flatnonzero(self.material.non_elliptic(np.linalg.solve(self.rest.metric, np.asarray(a))))
+        return np.linalg.solve(self.rest.metric, np.asarray(a))
 
     def fundamental_forms(self, u):
         """Current first and second fundamental forms per element, (m,2,2) each."""

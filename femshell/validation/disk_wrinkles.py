@@ -157,18 +157,9 @@ def eps_scale(h, R2):
 
 
 def svk_ellipticity_stretch(nu=NU):
-    r"""Principal stretch (current/target) below which the St Venant–Kirchhoff membrane law loses ellipticity
-    under equibiaxial compression.
-
-    With M = ā⁻¹a − I and W = (α/2)(tr M)² + β tr M² (design.md 1.2), the state a = λ² ā perturbed
-    by the deformation gradient λ(I + G) of a plane wave, G = a⊗n, has the second variation
-    W₂ = 2αλ⁴(a·n)² + βλ⁴|G + Gᵀ|² + 2(α + β)(λ² − 1)λ²|a|². For a shear wave (a ⊥ n,
-    |G + Gᵀ|² = 2|a|²) it vanishes at λ² = (α + β)/(α + 2β), i.e. √(3/4) = 0.866 for ν = 0.5.
-    Below it a compressed membrane is unstable at every wavelength, the shortest (the mesh size)
-    first: a material instability of the SVK law, not a buckling of the shell.
-    """
-    alpha, beta = nu / (1.0 - nu * nu), 1.0 / (2.0 * (1.0 + nu))
-    return math.sqrt((alpha + beta) / (alpha + 2.0 * beta))
+    """Stretch below which the SVK membrane loses ellipticity (:attr:`Material.svk_ellipticity_stretch`),
+    √(3/4) = 0.866 for ν = 0.5."""
+    return Material(nu=nu).svk_ellipticity_stretch
 
 
 class Disk:

@@ -183,7 +183,7 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
            "message": result.message, "t": float(loop.t), "wall_s": time.perf_counter() - t0, "setup_s": setup,
            "measures": measures, "max_c": float(loop.c.max()), "c_star": params.c_star, "c_max": params.c_max,
            "max_H": float(loop.H_vertex.max()), "fixed_point": fixed_point, **counters,
-           "non_elliptic": int(np.sum(loop.shell.membrane_ellipticity(loop.u) < 0)),
+           "non_elliptic": int(loop.non_elliptic),
            "max_fold_deg": float(fold_angles(pts, tri, mesh.topology.edge_faces).max()),
            "points": pts, "triangles": tri, "c": loop.c.copy(), "H": loop.H_vertex.copy(), "rest_radius": R,
            "profile_c": polar_profile(pts, loop.c, triangles=tri),
