@@ -63,7 +63,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 __all__ = [
-    "atomic_path", "atomic_write", "atomic_write_text", "atomic_write_json", "replace_generated", "to_json_safe",
+    "atomic_path", "atomic_write", "atomic_write_text", "atomic_write_json", "check_generated", "replace_generated", "to_json_safe",
     "TimeSeriesWriter", "Frame", "read_pvd", "read_frame", "find_series",
     "save_checkpoint", "load_checkpoint", "CheckpointError",
     "write_summary", "SUMMARY_NAME",
@@ -160,14 +160,26 @@ def atomic_write_text(path, text: str, encoding: str = "utf-8") -> Path:
     return atomic_write(path, w)
 
 
+def check_generated(path, begin: str, end: str) -> str:
+    """The text of a page whose generated part lies between the marker lines ``begin`` and
+    ``end``; ValueError naming the file when it cannot be read or a marker is missing. Scripts
+    call it before computing, so that a wrong page is reported at once, not after the run."""
+    path = Path(path)
+    try:
+        doc = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the page whose table is to be rewritten ({exc.strerror})") from None
+    if begin not in doc or end not in doc:
+        raise ValueError(f"{path}: no generated-part markers ({begin} ... {end})")
+    return doc
+
+
 def replace_generated(path, begin: str, end: str, text: str) -> Path:
     """Replace what lies between the marker lines ``begin`` and ``end`` of a text file (a page
     whose tables a script generates) by ``text``, atomically; the markers stay. ValueError
-    naming the file when a marker is missing."""
+    naming the file when it cannot be read or a marker is missing (:func:`check_generated`)."""
     path = Path(path)
-    doc = path.read_text(encoding="utf-8")
-    if begin not in doc or end not in doc:
-        raise ValueError(f"{path}: no generated-part markers ({begin} ... {end})")
+    doc = check_generated(path, begin, end)
     head, rest = doc.split(begin, 1)
     tail = rest.split(end, 1)[1]
     return atomic_write_text(path, f"{head}{begin}\n{text}\n{end}{tail}")

@@ -9,8 +9,9 @@ import meshio
 import numpy as np
 import pytest
 
-from femshell.io import (CheckpointError, TimeSeriesWriter, atomic_write, atomic_write_json, find_series,
-                         load_checkpoint, read_frame, read_pvd, save_checkpoint, write_summary)
+from femshell.io import (CheckpointError, TimeSeriesWriter, atomic_write, atomic_write_json, check_generated,
+                         find_series, load_checkpoint, read_frame, read_pvd, replace_generated, save_checkpoint,
+                         write_summary)
 from femshell.mesh import SurfaceMesh
 
 
@@ -44,6 +45,20 @@ def test_atomic_write_keeps_old_file_when_writer_raises(tmp_path):
     atomic_write(p, lambda tmp: Path(tmp).write_text("better"))
     assert p.read_text() == "better"
     assert _leftovers(tmp_path) == []
+
+
+def test_generated_page_rewritten_between_markers_and_bad_page_named(tmp_path):
+    begin, end = "<!-- BEGIN -->", "<!-- END -->"
+    page = tmp_path / "page.md"
+    page.write_text(f"head\n{begin}\nold\n{end}\ntail\n")
+    replace_generated(page, begin, end, "new")
+    assert page.read_text() == f"head\n{begin}\nnew\n{end}\ntail\n"
+    with pytest.raises(ValueError, match="missing.md: cannot read"):
+        check_generated(tmp_path / "missing.md", begin, end)
+    (tmp_path / "plain.md").write_text("no markers\n")
+    with pytest.raises(ValueError, match="plain.md: no generated-part markers"):
+        replace_generated(tmp_path / "plain.md", begin, end, "new")
+    assert (tmp_path / "plain.md").read_text() == "no markers\n"
 
 
 def test_json_refuses_nan_and_names_the_key(tmp_path):

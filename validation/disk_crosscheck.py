@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from femshell.io import atomic_write_json, replace_generated
+from femshell.io import atomic_write_json, check_generated, replace_generated
 from femshell.linear_buckling import _disk_mesh, azimuthal_wavenumber, critical_growth_strain
 from femshell.mesh.surface import SurfaceMesh
 from femshell.shell import Material, RestState, ShellModel
@@ -138,6 +138,11 @@ def main(argv=None):
     ap.add_argument("--doc", default=None, help="markdown file whose generated table is rewritten")
     ap.add_argument("--table-only", action="store_true", help="compute nothing: print (and --doc) the JSON's table")
     args = ap.parse_args(argv)
+    if args.doc:                           # a wrong page is reported now, not after the cases have run
+        try:
+            check_generated(args.doc, BEGIN, END)
+        except ValueError as exc:
+            sys.exit(str(exc))
     out = Path(args.out)
     records = json.loads(out.read_text())["records"] if out.exists() else []
     done = {(r["h"], r["R2"], r["resolution"]) for r in records}

@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 
 from femshell.analysis import polar_profile
-from femshell.io import atomic_write_json, replace_generated
+from femshell.io import atomic_write_json, check_generated, replace_generated
 from femshell.validation.sphere_patterns import SCENARIOS, model_of, run_scenario
 from femshell.viz import side_view, top_view
 
@@ -136,6 +136,11 @@ def main(argv=None):
     ap.add_argument("--doc", type=Path, default=None, help="markdown file whose generated table to rewrite")
     ap.add_argument("--table-only", action="store_true")
     args = ap.parse_args(argv)
+    if args.doc is not None:              # a wrong page is reported now, not after hours of runs
+        try:
+            check_generated(args.doc, BEGIN, END)
+        except ValueError as exc:
+            sys.exit(str(exc))
 
     if not args.table_only:
         RESULTS.mkdir(parents=True, exist_ok=True)
