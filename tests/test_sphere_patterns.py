@@ -13,6 +13,8 @@ def test_scenarios_carry_the_paper_parameters():
     assert p.lam_max / p.lam_min == pytest.approx(1.05) and p.h0 == 4.0 and p.c_star == 0.05 and p.w == 100.0
     assert p.natural_curvature == pytest.approx(1 / 30)
     assert model_of(SCENARIOS["uniform-thickness"]).thickness_mode == "uniform"
+    assert model_of(SCENARIOS["spots"], thickness_mode="uniform").thickness_mode == "uniform"
+    assert model_of(SCENARIOS["spots"]).thickness_mode == "volume"
     assert model_of(SCENARIOS["propagation"]).D == 0.5 and model_of(SCENARIOS["propagation"]).h0 == 1.0
     assert model_of(SCENARIOS["small-sphere"]).natural_curvature == pytest.approx(1 / 15)
     assert paper_vertices(30.0) == 25000 and paper_vertices(15.0) == 6250
@@ -33,3 +35,5 @@ def test_interrupted_scenario_resumes_to_the_uninterrupted_state(tmp_path):
     assert later["t"] == pytest.approx(0.4) and later["steps"] > rest["steps"]    # continued, not restarted
     with pytest.raises(ValueError, match="another run"):
         run_scenario(SCENARIOS["spots"], checkpoint=ck, t_final=0.5, n_vertices=300, radius=12.0)
+    with pytest.raises(ValueError, match="another run"):      # nor resumed with the other thickness law
+        run_scenario(SCENARIOS["spots"], checkpoint=ck, thickness_mode="uniform", **kw)

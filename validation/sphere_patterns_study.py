@@ -17,6 +17,10 @@ resumable from per-scenario checkpoints, and writes per scenario
 
     python validation/sphere_patterns_study.py [--scenarios spots decay ...] [--scale 0.5]
         [--n-vertices 2700] [--t-final 100] [--wall-time 900] [--doc docs/sphere-patterns.md]
+        [--membrane-law neo-hookean] [--thickness-mode uniform]
+
+``--membrane-law`` and ``--thickness-mode`` run a scenario with another law than its own (the
+stem gets ``-nh`` or ``-uniform``/``-volume``, the table a tag, the checkpoint records both).
 
 ``--table-only`` only rebuilds the table (printed, and written between the generated markers of
 ``--doc``) from the JSON files present.
@@ -93,9 +97,19 @@ def profile_plot(rec: dict, path: Path, title: str):
     plt.close(fig)
 
 
+def own_thickness_mode(name: str) -> str:
+    """The thickness law a scenario has in design.md 1.5 ("volume" unless it says otherwise)."""
+    return model_of(SCENARIOS[name]).thickness_mode
+
+
 def law_tag(rec: dict) -> str:
-    """The table's tag of a neo-Hookean run; design.md's St Venant–Kirchhoff runs are untagged."""
-    return " (neo-Hookean)" if rec.get("membrane_law", "svk") == "neo-hookean" else ""
+    """The table's tag of a run with another law than the scenario's own: neo-Hookean instead of
+    design.md's St Venant–Kirchhoff, or the other thickness law; runs with the scenario's own are untagged."""
+    tags = ["neo-Hookean"] if rec.get("membrane_law", "svk") == "neo-hookean" else []
+    mode = rec.get("thickness_mode", own_thickness_mode(rec["scenario"]))
+    if mode != own_thickness_mode(rec["scenario"]):
+        tags.append(f"{mode} thickness")
+    return f" ({', '.join(tags)})" if tags else ""
 
 
 def table(records: list) -> str:
@@ -132,6 +146,8 @@ def main(argv=None):
     ap.add_argument("--wall-time", type=float, default=900.0, help="seconds per scenario (this call)")
     ap.add_argument("--membrane-law", choices=("svk", "neo-hookean"), default="svk",
                     help="membrane law (design.md: svk; neo-hookean stays elliptic under compression)")
+    ap.add_argument("--thickness-mode", choices=("volume", "uniform"), default=None,
+                    help="thickness law instead of the scenario's own (design.md 1.1)")
     ap.add_argument("--checkpoints", type=Path, default=Path("validation-out/sphere-patterns-study"))
     ap.add_argument("--doc", type=Path, default=None, help="markdown file whose generated table to rewrite")
     ap.add_argument("--table-only", action="store_true")
@@ -150,13 +166,15 @@ def main(argv=None):
             print(f"== {name}", flush=True)
             radius = SCENARIOS[name].radius * args.scale
             nv = int(round(args.n_vertices * (radius / 15.0) ** 2))
-            stem = f"{name}-R{radius:g}-n{nv}" + ("-nh" if args.membrane_law == "neo-hookean" else "")
+            mode = args.thickness_mode or own_thickness_mode(name)
+            stem = (f"{name}-R{radius:g}-n{nv}" + ("-nh" if args.membrane_law == "neo-hookean" else "")
+                    + ("" if mode == own_thickness_mode(name) else f"-{mode}"))
             ck = args.checkpoints / f"{stem}.npz"
             r = run_scenario(SCENARIOS[name], t_final=args.t_final, n_vertices=nv, membrane_law=args.membrane_law,
-                             radius=radius, checkpoint=ck, wall_time=args.wall_time,
+                             thickness_mode=mode, radius=radius, checkpoint=ck, wall_time=args.wall_time,
                              log=lambda s: print(s, flush=True) if s.lstrip().startswith(("step", "initial")) else None)
             rec = {**record(r, radius, args.wall_time, model_of(SCENARIOS[name], radius)), "stem": stem,
-                   "membrane_law": args.membrane_law}
+                   "membrane_law": args.membrane_law, "thickness_mode": mode}
             atomic_write_json(RESULTS / f"{stem}.json", rec)
             title = f"{name}{law_tag(rec)}\nR = {radius:g}, {r['n_vertices']} vertices, t = {r['t']:.3g}, N_sp = {rec['n_spots']}"
             top_view(r["points"], r["triangles"], ("c", r["c"]), IMAGES / f"{stem}-top.png", title=title,

@@ -121,35 +121,40 @@ def paper_vertices(radius: float) -> int:
     return int(round(PAPER_VERTICES_R30 * (radius / 30.0) ** 2))
 
 
-def model_of(scenario: Scenario, radius: float | None = None, membrane_law: str | None = None) -> MechanochemicalModel:
+def model_of(scenario: Scenario, radius: float | None = None, membrane_law: str | None = None,
+             thickness_mode: str | None = None) -> MechanochemicalModel:
     """The :class:`MechanochemicalModel` of a scenario (radius override for small test spheres;
-    ``membrane_law`` overrides design.md's St Venant–Kirchhoff, e.g. ``"neo-hookean"``)."""
-    kw = {"h0": 2.0, **scenario.model, **({"membrane_law": membrane_law} if membrane_law else {})}
+    ``membrane_law`` overrides design.md's St Venant–Kirchhoff, e.g. ``"neo-hookean"``;
+    ``thickness_mode`` the scenario's thickness law, ``"volume"`` or ``"uniform"``)."""
+    kw = {"h0": 2.0, **scenario.model, **({"membrane_law": membrane_law} if membrane_law else {}),
+          **({"thickness_mode": thickness_mode} if thickness_mode else {})}
     return MechanochemicalModel(radius=radius or scenario.radius, **kw)
 
 
 def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius: float | None = None,
                  checkpoint: Path | None = None, wall_time: float | None = None, max_steps: int | None = None,
-                 seed: InitialSpot | None = None, membrane_law: str | None = None, log=None) -> dict:
+                 seed: InitialSpot | None = None, membrane_law: str | None = None, thickness_mode: str | None = None,
+                 log=None) -> dict:
     """Run one scenario to ``t_final`` (or stationarity, ``wall_time`` seconds, ``max_steps`` steps); a dict.
 
     With ``checkpoint`` (an .npz path) the run resumes from it when it exists and saves
     to it every 10 steps and at the end. ``seed``: the initial spot (default design.md 1.4's,
-    amplitude c_max and width h). ``membrane_law``: see :func:`model_of`.
+    amplitude c_max and width h). ``membrane_law``, ``thickness_mode``: see :func:`model_of`.
     """
     R = radius or scenario.radius
-    params = model_of(scenario, R, membrane_law)
+    params = model_of(scenario, R, membrane_law, thickness_mode)
     stepping = TimeStepping(t_final=t_final, ds_max=0.05, dt_max=1.0)
     t0 = time.perf_counter()
     mesh = sphere(radius=R, n_vertices=n_vertices)
     meta = {"scenario": scenario.name, "radius": R, "n_vertices": mesh.n_vertices, "t_final": t_final,
-            "membrane_law": params.membrane_law}
+            "membrane_law": params.membrane_law, "thickness_mode": params.thickness_mode}
     if seed is not None:
         meta["seed"] = [seed.amplitude, seed.width]
     if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
         state, saved = load_checkpoint(checkpoint)
         same = [k for k in meta if k != "t_final"]   # a run may be continued to a later end time
-        saved = {"membrane_law": "svk", **saved}     # checkpoints from before the law was recorded
+        # checkpoints from before the law and the thickness mode were recorded
+        saved = {"membrane_law": "svk", "thickness_mode": model_of(scenario, R).thickness_mode, **saved}
         if {k: saved.get(k) for k in same} != {k: meta[k] for k in same}:
             raise ValueError(f"{checkpoint} belongs to another run ({saved}); remove it to start afresh")
         loop = CoupledLoop.from_state_dict(mesh, params, state, stepping, log=log)
