@@ -1,11 +1,20 @@
-"""The sphere-patterns scenarios: parameters as design.md 1.5 states them, and a run stopped
-part-way resumes from its checkpoint to the same state as an uninterrupted run, and can be
-continued to a later end time."""
+"""The sphere-patterns scenarios: parameters as design.md 1.5 states them, an embedded scene for
+each with the same parameters, and a run stopped part-way resumes from its checkpoint to the same
+state as an uninterrupted run, and can be continued to a later end time."""
 
 import numpy as np
 import pytest
 
+from femshell.coupled import InitialSpot
+from femshell.scene import load_scene
+from femshell.scene.build import coupled_parameters
 from femshell.validation.sphere_patterns import SCENARIOS, model_of, paper_vertices, run_scenario
+
+#: the embedded scene of each scenario
+SCENES = {"spots": "sphere-spots", "ridges": "sphere-ridges", "decay": "sphere-decay",
+          "single-bulge": "sphere-single-bulge", "propagation": "sphere-propagation",
+          "large-spots": "sphere-large-spots", "small-sphere": "sphere-small",
+          "uniform-thickness": "sphere-uniform-thickness", "icosahedral": "sphere-icosahedral"}
 
 
 def test_scenarios_carry_the_paper_parameters():
@@ -18,6 +27,20 @@ def test_scenarios_carry_the_paper_parameters():
     assert model_of(SCENARIOS["propagation"]).D == 0.5 and model_of(SCENARIOS["propagation"]).h0 == 1.0
     assert model_of(SCENARIOS["small-sphere"]).natural_curvature == pytest.approx(1 / 15)
     assert paper_vertices(30.0) == 25000 and paper_vertices(15.0) == 6250
+
+
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
+def test_every_scenario_has_an_embedded_scene_with_its_parameters(name):
+    scene = load_scene(SCENES[name])
+    params, _, seed = coupled_parameters(scene)
+    ref = model_of(SCENARIOS[name])
+    fields = ("nu", "E", "h0", "thickness_mode", "lam_max", "lam_min", "b", "c_star", "w", "Hs", "beta", "D",
+              "membrane_law")
+    assert {f: getattr(params, f) for f in fields} == {f: getattr(ref, f) for f in fields}
+    assert scene["mesh"]["kind"] == "sphere" and scene["mesh"]["radius"] == SCENARIOS[name].radius
+    assert seed == InitialSpot()                 # design.md 1.4: amplitude c_max, width h, at the pole
+    if name != "decay":                          # the paper's resolution (decay: 10 000, it ends early)
+        assert scene["mesh"]["n_vertices"] == paper_vertices(SCENARIOS[name].radius)
 
 
 def test_interrupted_scenario_resumes_to_the_uninterrupted_state(tmp_path):
