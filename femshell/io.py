@@ -63,7 +63,8 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 __all__ = [
-    "atomic_path", "atomic_write", "atomic_write_text", "atomic_write_json", "check_generated", "replace_generated", "to_json_safe",
+    "atomic_path", "atomic_write", "atomic_write_text", "atomic_write_json", "check_generated", "replace_generated",
+    "to_json_safe",
     "TimeSeriesWriter", "Frame", "read_pvd", "read_frame", "find_series",
     "save_checkpoint", "load_checkpoint", "CheckpointError",
     "write_summary", "SUMMARY_NAME",
