@@ -106,8 +106,9 @@ def law_tag(rec: dict) -> str:
     """The table's tag of a run with another law than the scenario's own: neo-Hookean instead of
     design.md's St Venant–Kirchhoff, or the other thickness law; runs with the scenario's own are untagged."""
     tags = ["neo-Hookean"] if rec.get("membrane_law", "svk") == "neo-hookean" else []
-    mode = rec.get("thickness_mode", own_thickness_mode(rec["scenario"]))
-    if mode != own_thickness_mode(rec["scenario"]):
+    own = own_thickness_mode(rec["scenario"])
+    mode = rec.get("thickness_mode", own)
+    if mode != own:
         tags.append(f"{mode} thickness")
     return f" ({', '.join(tags)})" if tags else ""
 
@@ -166,9 +167,10 @@ def main(argv=None):
             print(f"== {name}", flush=True)
             radius = SCENARIOS[name].radius * args.scale
             nv = int(round(args.n_vertices * (radius / 15.0) ** 2))
-            mode = args.thickness_mode or own_thickness_mode(name)
+            own = own_thickness_mode(name)
+            mode = args.thickness_mode or own
             stem = (f"{name}-R{radius:g}-n{nv}" + ("-nh" if args.membrane_law == "neo-hookean" else "")
-                    + ("" if mode == own_thickness_mode(name) else f"-{mode}"))
+                    + ("" if mode == own else f"-{mode}"))
             ck = args.checkpoints / f"{stem}.npz"
             r = run_scenario(SCENARIOS[name], t_final=args.t_final, n_vertices=nv, membrane_law=args.membrane_law,
                              thickness_mode=mode, radius=radius, checkpoint=ck, wall_time=args.wall_time,
