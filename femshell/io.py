@@ -434,10 +434,6 @@ class TimeSeriesWriter:
     def times(self) -> list[float]:
         return [t for t, _ in self.entries]
 
-    @property
-    def last_time(self) -> float | None:
-        return self.entries[-1][0] if self.entries else None
-
     def __len__(self):
         return len(self.entries)
 

@@ -354,9 +354,6 @@ class Scene:
     def kind(self) -> str:
         return self.data["solver"]["kind"]
 
-    def to_toml(self) -> str:
-        return dump_toml(self.data)
-
 
 # ----------------------------------------------------------------------------- overrides
 

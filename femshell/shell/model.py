@@ -254,16 +254,6 @@ class ShellModel:
         q[self.free] = v
         return q[: 3 * self.mesh.n_vertices].reshape(-1, 3)
 
-    def edge_angles(self, u):
-        return self.full(u)[3 * self.mesh.n_vertices:]
-
-    def prescribe(self, vertices, components, values):
-        """Change prescribed position components (for displacement-controlled loading)."""
-        idx = 3 * np.asarray(vertices)[:, None] + np.asarray(components)[None, :]
-        if not self.fixed[idx].all():
-            raise ValueError("only constrained components can be prescribed")
-        self.q_fixed[idx] = values
-
     # ---- energy and derivatives -----------------------------------------------------------------
     @property
     def _kernels(self) -> el.Kernels:
