@@ -98,12 +98,12 @@ def table(meta, rows, reference):
              f"{reference['wall_s']:.0f} s; {reference['n_spots']} spot(s), radius {reference['spot_radius']:.3f}, "
              f"max c {reference['max_c']:.4f}). Observed order against the next larger ds_max in brackets.", "",
              "| ds_max | steps | wall time (s) | c − c_ref over c_max: max, rms | x − x_ref over h0: max, rms "
-             "| spot radius − ref (rel.) |",
-             "|---|---|---|---|---|---|"]
+             "| N_sp | spot radius − ref (rel.) |",
+             "|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['ds_max']:g} | {r['steps']} | {r['wall_s']:.1f} | {r['error_c']:.2e}{order(r, 'c')}, "
                      f"{r['error_c_rms']:.2e}{order(r, 'c_rms')} | {r['error_x']:.2e}{order(r, 'x')}, "
-                     f"{r['error_x_rms']:.2e}{order(r, 'x_rms')} | {r['error_radius']:.2e}{order(r, 'radius')} |")
+                     f"{r['error_x_rms']:.2e}{order(r, 'x_rms')} | {r['n_spots']} | {r['error_radius']:.2e}{order(r, 'radius')} |")
     return "\n".join(lines)
 
 
