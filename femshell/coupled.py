@@ -983,6 +983,17 @@ class CoupledLoop:
                           non_elliptic=int(self.non_elliptic))
 
     # ---- loops --------------------------------------------------------------------------------
+    def iterate(self, max_steps: int | None = None):
+        """Generator: one :class:`StepRecord` per accepted step until t_final or stationarity.
+
+        Raises :class:`CoupledError` when a step fails (the loop keeps the last accepted state).
+        """
+        k = 0
+        while not self.done and (max_steps is None or k < max_steps):
+            rec = self.advance()
+            k += 1
+            yield rec
+
     def run(self, callback=None, *, checkpoint=None, checkpoint_every: int = 10, max_steps: int | None = None,
             wall_time: float | None = None, keep_records: bool = False) -> RunResult:
         """Step until t_final, stationarity, ``max_steps`` (default ``stepping.max_steps``) or ``wall_time`` (s).
