@@ -23,16 +23,13 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import time
 from pathlib import Path
 
 import numpy as np
 
-from femshell.analysis import find_spots, vertex_areas
-from femshell.coupled import CoupledLoop, InitialSpot, TimeStepping
+from femshell.analysis import vertex_areas
 from femshell.io import atomic_write_json, check_generated, replace_generated
-from femshell.mesh.generators import sphere
-from femshell.validation.sphere_patterns import SCENARIOS, model_of
+from femshell.validation.sphere_patterns import SCENARIOS, model_of, run_scenario
 
 
 def markers(scenario):
@@ -47,19 +44,14 @@ def run(scenario, radius, n_vertices, t_final, ds_max, states: Path):
     if saved.exists():
         with np.load(saved) as z:
             return {k: (z[k] if z[k].ndim else z[k].item()) for k in z.files}
-    params = model_of(SCENARIOS[scenario], radius)
-    mesh = sphere(radius=radius, n_vertices=n_vertices)
-    t0 = time.perf_counter()
-    loop = CoupledLoop(mesh, params, TimeStepping(t_final=t_final, ds_max=ds_max, dt_max=1.0,
-                                                  stationary_rate_c=0.0), c0=InitialSpot(), log=print)
-    result = loop.run()
-    if result.status != "t_final":
-        raise RuntimeError(f"ds_max = {ds_max}: the run ended with '{result.status}' ({result.message})")
-    spots = find_spots(loop.points, mesh.triangles, loop.c, params.c_star)
-    out = {"ds_max": ds_max, "steps": loop.step, "wall_s": time.perf_counter() - t0, "c": loop.c.copy(),
-           "points": loop.points.copy(), "vertex_area": vertex_areas(loop.points, mesh.triangles),
-           "spot_radius": spots.spot_radius, "n_spots": spots.n_spots, "max_c": float(loop.c.max()),
-           "c_max": params.c_max, "h0": params.h0, "n_vertices": mesh.n_vertices}
+    r = run_scenario(SCENARIOS[scenario], t_final=t_final, n_vertices=n_vertices, radius=radius,
+                     stepping={"ds_max": ds_max, "stationary_rate_c": 0.0}, log=print)
+    if r["status"] != "t_final":
+        raise RuntimeError(f"ds_max = {ds_max}: the run ended with '{r['status']}' ({r['message']})")
+    out = {"ds_max": ds_max, "steps": r["steps"], "wall_s": r["wall_s"], "c": r["c"], "points": r["points"],
+           "vertex_area": vertex_areas(r["points"], r["triangles"]), "spot_radius": r["measures"].spot_radius,
+           "n_spots": r["measures"].n_spots, "max_c": r["max_c"], "c_max": r["c_max"],
+           "h0": model_of(SCENARIOS[scenario]).h0, "n_vertices": r["n_vertices"]}
     states.mkdir(parents=True, exist_ok=True)
     partial = saved.with_name(saved.name + ".part")
     with open(partial, "wb") as f:     # renamed when complete: a stopped run leaves no broken state

@@ -134,22 +134,25 @@ def model_of(scenario: Scenario, radius: float | None = None, membrane_law: str 
 def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius: float | None = None,
                  checkpoint: Path | None = None, wall_time: float | None = None, max_steps: int | None = None,
                  seed: InitialSpot | None = None, membrane_law: str | None = None, thickness_mode: str | None = None,
-                 log=None) -> dict:
+                 stepping: dict | None = None, log=None) -> dict:
     """Run one scenario to ``t_final`` (or stationarity, ``wall_time`` seconds, ``max_steps`` steps); a dict.
 
     With ``checkpoint`` (an .npz path) the run resumes from it when it exists and saves
     to it every 10 steps and at the end. ``seed``: the initial spot (default design.md 1.4's,
     amplitude c_max and width h). ``membrane_law``, ``thickness_mode``: see :func:`model_of`.
+    ``stepping``: :class:`TimeStepping` fields instead of the scenarios' (ds_max = 0.05, dt_max = 1).
     """
     R = radius or scenario.radius
     params = model_of(scenario, R, membrane_law, thickness_mode)
-    stepping = TimeStepping(t_final=t_final, ds_max=0.05, dt_max=1.0)
+    time_stepping = TimeStepping(t_final=t_final, **{"ds_max": 0.05, "dt_max": 1.0, **(stepping or {})})
     t0 = time.perf_counter()
     mesh = sphere(radius=R, n_vertices=n_vertices)
     meta = {"scenario": scenario.name, "radius": R, "n_vertices": mesh.n_vertices, "t_final": t_final,
             "membrane_law": params.membrane_law, "thickness_mode": params.thickness_mode}
     if seed is not None:
         meta["seed"] = [seed.amplitude, seed.width]
+    if stepping:
+        meta["stepping"] = dict(stepping)
     if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
         state, saved = load_checkpoint(checkpoint)
         same = [k for k in meta if k != "t_final"]   # a run may be continued to a later end time
@@ -157,10 +160,10 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
         saved = {"membrane_law": "svk", "thickness_mode": model_of(scenario, R).thickness_mode, **saved}
         if {k: saved.get(k) for k in same} != {k: meta[k] for k in same}:
             raise ValueError(f"{checkpoint} belongs to another run ({saved}); remove it to start afresh")
-        loop = CoupledLoop.from_state_dict(mesh, params, state, stepping, log=log)
+        loop = CoupledLoop.from_state_dict(mesh, params, state, time_stepping, log=log)
         history = dict(saved.get("history", {}))
     else:
-        loop = CoupledLoop(mesh, params, stepping, c0=seed or InitialSpot(), log=log)
+        loop = CoupledLoop(mesh, params, time_stepping, c0=seed or InitialSpot(), log=log)
         history = {}
     setup = time.perf_counter() - t0
     counters = {"negative_c": max(0.0, -float(loop.c.min())), "non_finite": 0, "saddles": 0, "steps": 0, "snaps": 0,
