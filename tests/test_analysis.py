@@ -43,6 +43,7 @@ def test_k_bumps_give_k_spots(ball, k):
     for reg in pm.regions:
         assert reg.area == pytest.approx(disk_area, rel=0.03)
         assert reg.aspect < 1.3 and reg.isoperimetric < 1.2
+        assert 0.8 < reg.elongation < 1.2 and reg.inscribed_radius == pytest.approx(rho, rel=0.1)
     assert pm.area_low == pytest.approx(k * disk_area, rel=0.03)
     assert pm.area_total == pytest.approx(4 * math.pi * R**2, rel=0.01)
     assert pm.spot_radius == pytest.approx(math.sqrt(disk_area / math.pi), rel=0.02)
@@ -66,6 +67,32 @@ def test_band_and_arc_are_ridges(ball):
     assert pm.n_spots == 1 and pm.regions[0].kind == "ridge" and pm.regions[0].aspect > 3
 
 
+@pytest.mark.parametrize("degrees, width", [(90, 2.5), (90, 2.0), (240, 2.0)])
+def test_bent_band_is_a_ridge_by_its_inscribed_disk(ball, degrees, width):
+    # a band of width w along an arc of geodesic radius 4 around the x axis: area L w, inscribed
+    # radius w/2, so elongation 4 L / (pi w); at 90 deg, w = 2.5 the second moment alone is round
+    # enough (aspect < 2.5) to miss it
+    x = ball.points / np.linalg.norm(ball.points, axis=1)[:, None]
+    rho = R * np.arccos(np.clip(x[:, 0], -1, 1))
+    phi = np.arctan2(x[:, 2], x[:, 1])
+    half = math.radians(degrees) / 2
+    c = np.minimum(width / 2 - np.abs(rho - 4.0), np.where(np.abs(phi) <= half, 1.0, -(np.abs(phi) - half) * 4.0))
+    pm = find_spots(ball.points, ball.triangles, c, 0.0)
+    length = 4.0 * 2 * half
+    assert pm.n_spots == 1 and pm.n_ridges == 1
+    reg = pm.regions[0]
+    assert reg.area == pytest.approx(length * width, rel=0.05)
+    assert reg.inscribed_radius == pytest.approx(width / 2, rel=0.1)
+    assert reg.elongation == pytest.approx(4 * length / (math.pi * width), rel=0.05)
+
+
+def test_field_above_threshold_everywhere_is_one_unbounded_spot(ball):
+    pm = find_spots(ball.points, ball.triangles, np.ones(ball.n_vertices), 0.5)
+    assert pm.n_spots == 1 and pm.fraction_patterned == pytest.approx(1.0)
+    reg = pm.as_dict()["regions"][0]
+    assert reg["kind"] == "spot" and reg["inscribed_radius"] is None and reg["elongation"] == 0.0
+
+
 def test_elongated_spot_is_a_ridge_round_one_is_not(ball):
     from femshell.coupled import gaussian_spot
 
@@ -73,7 +100,8 @@ def test_elongated_spot_is_a_ridge_round_one_is_not(ball):
     round_ = gaussian_spot(ball.points, 1.0, 1.5)
     pl, pr = (find_spots(ball.points, ball.triangles, f, 0.3) for f in (long, round_))
     assert pl.regions[0].kind == "ridge" and pl.regions[0].aspect == pytest.approx(4.0, rel=0.15)
-    assert pr.regions[0].kind == "spot" and pr.regions[0].aspect < 1.2
+    assert pl.regions[0].elongation == pytest.approx(4.0, rel=0.05)
+    assert pr.regions[0].kind == "spot" and pr.regions[0].aspect < 1.2 and pr.regions[0].elongation < 1.1
 
 
 def test_radius_and_spacing_formulas_by_hand():
