@@ -584,7 +584,7 @@ class StepRecord:
 class RunResult:
     """How :meth:`CoupledLoop.run` ended.
 
-    status : "t_final", "stationary", "max_steps", "wall_time" or "failed";
+    status : "t_final", "stationary", "max_steps", "wall_time", "interrupted" or "failed";
     message : human-readable reason; steps : accepted steps in this call; t : final
     time; wall_s : wall time of the call; last : the last :class:`StepRecord`.
     """
@@ -1002,7 +1002,9 @@ class CoupledLoop:
         ``checkpoint(state_dict, record)`` every ``checkpoint_every`` accepted steps and
         once at the end, whatever the reason, including a failed step (then with the
         last accepted state). A failure does not raise: the result has status "failed"
-        and the message. ``keep_records`` keeps all step records in the result.
+        and the message. Neither does Ctrl-C (KeyboardInterrupt): the run ends with status
+        "interrupted" on the last accepted state, checkpointed. ``keep_records`` keeps all
+        step records in the result.
         """
         if int(checkpoint_every) < 1:
             raise ValueError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
@@ -1042,6 +1044,12 @@ class CoupledLoop:
         except CoupledError as exc:
             status, message = "failed", str(exc)
             self._say(f"coupled loop stopped: {exc}")
+        except KeyboardInterrupt:
+            # Ctrl-C (or SIGTERM, where the caller maps it to KeyboardInterrupt) mid-step: the
+            # accepted state is intact, but a trial step may have changed the rest state
+            self.growth.apply(self.s)
+            status, message = "interrupted", f"interrupted at t = {self.t:.6g} after {k} step(s) of this run"
+            self._say(f"coupled loop {message}")
         if checkpoint is not None and dirty:
             checkpoint(self.state_dict(), last if last is not None else self.record())
         return RunResult(status, message, k, float(self.t), time.perf_counter() - t0, last, records)

@@ -212,6 +212,27 @@ def test_a_step_that_cannot_be_made_keeps_the_last_state(ball, spot_run):
     assert "ellipticity" not in res.message
 
 
+def test_ctrl_c_mid_step_ends_on_the_last_accepted_state_checkpointed(ball, spot_run):
+    p, st, loop, initial, states, records = spot_run
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+    apply = lp.growth.apply
+    calls = []
+
+    def interrupt_after_the_trial_rest_state(s):
+        apply(s)
+        calls.append(1)
+        if len(calls) == 2:                                   # inside the second step: its trial s is set
+            raise KeyboardInterrupt
+
+    lp.growth.apply = interrupt_after_the_trial_rest_state
+    saved = []
+    res = lp.run(checkpoint=lambda state, rec: saved.append(state))
+    assert res.status == "interrupted" and res.steps == 1 and lp.step == 3
+    assert np.array_equal(lp.c, loop.c) and np.array_equal(lp.u, loop.u)     # = step 3 of the fixture
+    assert np.array_equal(lp.shell.rest.metric, lp.growth.rest_state(lp.s).metric)   # rest state put back
+    assert len(saved) == 1 and saved[0]["step"] == 3 and np.array_equal(saved[0]["c"], loop.c)
+
+
 def test_a_failed_step_names_a_membrane_compressed_past_its_ellipticity_limit(ball, spot_run):
     """The sphere shrunk to 0.8 of its radius (equibiaxial stretch 0.8 < 0.866, SVK at ν = 0.5): the loop
     counts the non-elliptic elements and a failed step says so; with the neo-Hookean law it does not."""

@@ -389,3 +389,21 @@ def test_generated_meshes_pass_topology():
             m.topology
         except MeshError as exc:  # pragma: no cover - the assertion message is the point
             pytest.fail(str(exc))
+
+
+def test_meshing_keeps_the_callers_sigterm_handler():
+    """gmsh.initialize resets SIGTERM; a run that handles it (orderly stop, checkpoint) must keep it.
+    In a child process: without the handler the signal would end the test run."""
+    import subprocess
+    import sys
+
+    code = ("import os, signal, time\n"
+            "got = []\n"
+            "signal.signal(signal.SIGTERM, lambda *a: got.append(1))\n"
+            "from femshell.mesh import sphere\n"
+            "sphere(1.0, n_vertices=100)\n"
+            "os.kill(os.getpid(), signal.SIGTERM)\n"
+            "time.sleep(0.05)\n"
+            "print('handled', len(got))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "handled 1" in out.stdout, out.stderr[-500:]

@@ -22,6 +22,9 @@ resumable from per-scenario checkpoints, and writes per scenario
 ``--membrane-law`` and ``--thickness-mode`` run a scenario with another law than its own (the
 stem gets ``-nh`` or ``-uniform``/``-volume``, the table a tag, the checkpoint records both).
 
+Ctrl-C or SIGTERM (``kill``) stops the scenario in progress on its last accepted state: its
+checkpoint, JSON and pictures are written (status "interrupted") and no further scenario starts.
+
 ``--table-only`` only rebuilds the table (printed, and written between the generated markers of
 ``--doc``) from the JSON files present.
 """
@@ -31,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import sys
 from pathlib import Path
 
@@ -138,6 +142,10 @@ def table(records: list) -> str:
     return "\n".join(lines)
 
 
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), choices=list(SCENARIOS))
@@ -160,6 +168,7 @@ def main(argv=None):
             sys.exit(str(exc))
 
     if not args.table_only:
+        signal.signal(signal.SIGTERM, _raise_interrupt)     # kill: the same orderly stop as Ctrl-C
         RESULTS.mkdir(parents=True, exist_ok=True)
         IMAGES.mkdir(parents=True, exist_ok=True)
         args.checkpoints.mkdir(parents=True, exist_ok=True)
@@ -185,6 +194,8 @@ def main(argv=None):
             profile_plot(rec, IMAGES / f"{stem}-profile.png", title)
             print(f"   {rec['status']} t = {rec['t']:.4g}, {rec['steps']} steps, N_sp {rec['n_spots']}, "
                   f"{rec['wall_s']:.0f} s", flush=True)
+            if rec["status"] == "interrupted":
+                break
     records = [json.loads(p.read_text()) for p in sorted(RESULTS.glob("*.json"))]
     text = table(records)
     if args.doc is not None:              # before printing: a closed pipe must not lose the page

@@ -39,7 +39,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from contextlib import contextmanager
+import signal
+from contextlib import contextmanager, suppress
 
 import numpy as np
 
@@ -148,8 +149,14 @@ def _gmsh_model(seed, algorithm=MESH_ALGORITHM):
 
     started = not gmsh.isInitialized()
     if started:
-        # interruptible=False: no SIGINT handler (which fails outside the main thread)
+        # interruptible=False: no SIGINT handler (which fails outside the main thread). gmsh still
+        # resets SIGTERM to its default action, which would kill a run that handles it (femshell
+        # run, the studies) without its orderly stop: put Python's handler back
+        on_term = signal.getsignal(signal.SIGTERM)
         gmsh.initialize(readConfigFiles=False, interruptible=False)
+        if on_term is not None:
+            with suppress(ValueError):      # outside the main thread no handler can be set
+                signal.signal(signal.SIGTERM, on_term)
         previous_model = None
     else:
         previous_model = gmsh.model.getCurrent()

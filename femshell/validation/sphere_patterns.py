@@ -220,6 +220,8 @@ def run(level: str = "quick", out_dir=None, log=None) -> list:
         except CoupledError as exc:        # the initial equilibrium failed: the other scenarios still run
             rows.append(Row(f"{name}: run failed ({str(exc)[:80]})", 1.0, 0.0, 0.0, nv, 0.0))
             continue
+        if r["status"] == "interrupted":   # Ctrl-C: the run is checkpointed; stop the case, not one scenario
+            raise KeyboardInterrupt
         _LAST[name] = r
         rows.extend(scenario_rows(sc, r))
     return rows
