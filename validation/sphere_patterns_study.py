@@ -7,8 +7,9 @@ most ``--wall-time`` seconds each (to t_final or a stationary pattern if that co
 resumable from per-scenario checkpoints, and writes per scenario
 
 * ``validation/results/studies/sphere-patterns/NAME-R<radius>-n<vertices>.json``: status, time reached, the paper's
-  measures (N_sp, ridges, patterned fraction, spot radius, spacing), max c, max H, and the
-  run's invariants (negative c, non-finite steps, saddles accepted);
+  measures (N_sp, ridges, patterned fraction, spot radius, spacing; area, elongation and kind of
+  each region), max c, max H, and the run's invariants (negative c, non-finite steps, saddles
+  accepted);
 * ``docs/images/sphere-patterns/NAME-R<radius>-n<vertices>-top.png`` (c seen from the pole, as the
   paper's figures), ``...-side.png`` (shape coloured by the distance from the centre) and
   ``...-profile.png`` (c and H against the polar angle, the paper's Fig. 6d, in 5° bins, with the
@@ -68,6 +69,7 @@ def record(r: dict, radius: float, wall_budget: float, params) -> dict:
             "spacing": num(m.spacing), "max_c": r["max_c"], "c_star": r["c_star"], "c_max": r["c_max"],
             "max_H": r["max_H"], "negative_c": r["negative_c"], "non_finite": r["non_finite"],
             "saddles": r["saddles"], "fixed_point": num(r["fixed_point"]),
+            "regions": [{"area": g.area, "elongation": num(g.elongation), "kind": g.kind} for g in m.regions],
             "profile": {"theta_deg": [float(math.degrees(t)) for t in pc.theta], "c": [num(v) for v in pc.mean],
                         "H": [num(v) for v in ph.mean], "H_threshold": threshold_curvature(params)}}
 
