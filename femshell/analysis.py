@@ -176,14 +176,13 @@ def _inscribed_radii(pts, tri, above, label, n_comp, segments):
     surface curved with radius R the chord is shorter than the geodesic by r³/(24 R²).
     Returns (n_comp,); inf for a component with no boundary (f > 0 on a whole closed surface).
     """
-    r_in = np.full(n_comp, np.inf)
     if len(segments) == 0:
-        return r_in
+        return np.full(n_comp, np.inf)
     tree = cKDTree(np.concatenate([segments[:, 0], segments[:, 1], segments.mean(axis=1)]))
     av = np.flatnonzero(above)
     dist = np.zeros(len(pts))
     dist[av] = tree.query(pts[av])[0]
-    r_in[:] = 0.0
+    r_in = np.zeros(n_comp)
     np.maximum.at(r_in, label[av], dist[av])
     # between the vertices: inside triangles within one edge of their component's vertex maximum
     t_in = tri[np.all(above[tri], axis=1)]

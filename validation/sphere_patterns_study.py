@@ -144,10 +144,6 @@ def table(records: list) -> str:
     return "\n".join(lines)
 
 
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), choices=list(SCENARIOS))
@@ -170,7 +166,7 @@ def main(argv=None):
             sys.exit(str(exc))
 
     if not args.table_only:
-        signal.signal(signal.SIGTERM, _raise_interrupt)     # kill: the same orderly stop as Ctrl-C
+        signal.signal(signal.SIGTERM, signal.default_int_handler)   # kill: the same orderly stop as Ctrl-C
         RESULTS.mkdir(parents=True, exist_ok=True)
         IMAGES.mkdir(parents=True, exist_ok=True)
         args.checkpoints.mkdir(parents=True, exist_ok=True)

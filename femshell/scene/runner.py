@@ -362,7 +362,7 @@ class BaseRunner:
         old_term = None
         try:
             with contextlib.suppress(ValueError):   # not in the main thread: no SIGTERM handler
-                old_term = signal.signal(signal.SIGTERM, _raise_interrupt)
+                old_term = signal.signal(signal.SIGTERM, signal.default_int_handler)
             try:
                 self.loop()
                 if self.status == "running":
@@ -444,10 +444,6 @@ class BaseRunner:
 
     def report_lines(self, fin) -> list:
         return []
-
-
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
 
 
 def _clean(obj):
