@@ -56,7 +56,7 @@ from scipy.spatial import cKDTree
 from .geometry import triangle_areas
 
 __all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeasures", "find_spots",
-           "count_spots", "polar_profile", "PolarProfile", "azimuthal_spectrum", "count_wrinkles"]
+           "count_spots", "same_pattern", "polar_profile", "PolarProfile", "azimuthal_spectrum", "count_wrinkles"]
 
 
 def _mesh(points, triangles):
@@ -369,6 +369,38 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
 def count_spots(points, triangles, c, c_star: float, min_area: float | None = None) -> int:
     """N_sp: the number of connected regions with c > c* (see :func:`find_spots`)."""
     return find_spots(points, triangles, c, c_star, min_area=min_area).n_spots
+
+
+def same_pattern(a: PatternMeasures, b: PatternMeasures, tol: float = 0.01) -> bool:
+    r"""Whether two patterns are the same regions within ``tol``.
+
+    Same: equal numbers of spots and of ridges, patterned areas within ``tol`` of each other
+    (|A_l(b) − A_l(a)| ≤ tol A_l(a)), and every region centroid of each within tol · r̄ of a
+    centroid of the other, r̄ = √(A_l(a) / (π N)) the mean region radius. Two empty patterns
+    are the same. It compares the regions, not the field: c may still change inside them or
+    below c* (a ring that has not yet nucleated is invisible).
+
+    >>> import numpy as np
+    >>> from femshell.mesh.generators import sphere
+    >>> m = sphere(10.0, n_vertices=800)
+    >>> spot = lambda x0, amp: amp * np.exp(-np.sum((m.points - x0) ** 2, axis=1) / 8)
+    >>> a = find_spots(m.points, m.triangles, spot([0, 0, 10], 1.0), 0.1)
+    >>> b = find_spots(m.points, m.triangles, spot([0, 0, 10], 1.002), 0.1)   # 0.2 % stronger
+    >>> c = find_spots(m.points, m.triangles, spot([0, 0, 10], 1.3), 0.1)     # larger
+    >>> same_pattern(a, b), same_pattern(a, c)
+    (True, False)
+    """
+    if (a.n_spots, a.n_ridges, len(a.regions)) != (b.n_spots, b.n_ridges, len(b.regions)):
+        return False
+    if not a.regions:
+        return True
+    if abs(b.area_low - a.area_low) > tol * a.area_low:
+        return False
+    xa = np.array([r.centroid for r in a.regions])
+    xb = np.array([r.centroid for r in b.regions])
+    d = np.linalg.norm(xa[:, None, :] - xb[None, :, :], axis=2)
+    reach = tol * math.sqrt(a.area_low / (math.pi * len(a.regions)))
+    return bool(d.min(axis=1).max() <= reach and d.min(axis=0).max() <= reach)
 
 
 # ----------------------------------------------------------------------------- profiles

@@ -448,6 +448,14 @@ class TimeStepping:
         ``stationary_steps`` steps in a row, together with
     stationary_rate_x : max|Δx| / (dt · h0) (shape change per unit time in thicknesses);
         c_scale = max(max c, 1e-2 c_max). Set either to 0 to never stop early.
+    stationary_pattern_time, stationary_pattern_tol : a second, coarser stop: the pattern, the
+        regions where c > c* (:func:`~femshell.analysis.find_spots`), has stayed the same within
+        ``stationary_pattern_tol`` (:func:`~femshell.analysis.same_pattern`: the numbers of spots
+        and ridges, the patterned area, the region centroids) for ``stationary_pattern_time``.
+        For runs whose pattern settles while a few vertices at the spots' edges go on changing
+        for ever (a strong source: docs/sphere-patterns.md, "When the pattern is stationary but c
+        is not"). It does not see c build up below c* (a ring before it nucleates): give it a time
+        longer than such a build-up. 0 (default): only the rate test above.
     newton_rtol, newton_atol_strain : convergence |∇Π| ≤ rtol · |∇Π(u_start)| + atol, with
         atol = newton_atol_strain × (the residual of a uniform unit strain).
     newton_max_iter, newton_backend : passed to :func:`~femshell.solvers.newton.minimize`.
@@ -491,6 +499,8 @@ class TimeStepping:
     stationary_rate_c: float = 1e-3
     stationary_rate_x: float = 1e-3
     stationary_steps: int = 3
+    stationary_pattern_time: float = 0.0
+    stationary_pattern_tol: float = 0.01
     newton_rtol: float = 1e-6
     newton_atol_strain: float = 1e-10
     newton_max_iter: int = 40
@@ -519,6 +529,8 @@ class TimeStepping:
         _finite("stationary_rate_x", self.stationary_rate_x, 0.0)
         if int(self.stationary_steps) != self.stationary_steps or self.stationary_steps < 1:
             raise ValueError(f"stationary_steps must be an integer >= 1, got {self.stationary_steps!r}")
+        _finite("stationary_pattern_time", self.stationary_pattern_time, 0.0)
+        _finite("stationary_pattern_tol", self.stationary_pattern_tol, 0.0)
         _finite("newton_rtol", self.newton_rtol, 0.0, lo_open=True, text="(0, inf)")
         _finite("newton_atol_strain", self.newton_atol_strain, 0.0)
         if int(self.newton_max_iter) != self.newton_max_iter or self.newton_max_iter < 1:
@@ -669,6 +681,7 @@ class CoupledLoop:
         self.c = c
         self.u = self.shell.initial_unknowns()
         self.stationary_count = 0
+        self._pattern_anchor = None       # (t, PatternMeasures, c, points) since which the pattern is the same
         self.n_rejected = 0
         self.n_snaps = 0
         self.newton_total = 0
@@ -839,10 +852,37 @@ class CoupledLoop:
 
     @property
     def is_stationary(self) -> bool:
+        """c and the shape stopped changing (the rate test), or the pattern did (``stationary_pattern_time``)."""
+        return self.stationary_reason != ""
+
+    @property
+    def stationary_reason(self) -> str:
+        """Why the run is stationary: a sentence, or "" while it is not."""
         st = self.stepping
-        if st.stationary_rate_c <= 0 or st.stationary_rate_x <= 0:
-            return False
-        return self.stationary_count >= st.stationary_steps
+        if st.stationary_rate_c > 0 and st.stationary_rate_x > 0 and self.stationary_count >= st.stationary_steps:
+            return (f"rates of c and shape {self._last_rates[0]:.2g}, {self._last_rates[1]:.2g} per unit "
+                    f"time for {self.stationary_count} steps")
+        held = self.pattern_unchanged_for
+        if st.stationary_pattern_time > 0 and held >= st.stationary_pattern_time * (1 - 1e-12):
+            m = self._pattern_anchor[1]
+            return (f"the pattern ({m.n_spots} region(s), {100 * m.fraction_patterned:.3g} % of the area) has stayed "
+                    f"the same within {st.stationary_pattern_tol:g} since t = {self._pattern_anchor[0]:.6g}")
+        return ""
+
+    @property
+    def pattern_unchanged_for(self) -> float:
+        """Time over which the pattern has stayed the same (0 unless ``stationary_pattern_time`` > 0)."""
+        return 0.0 if self._pattern_anchor is None else self.t - self._pattern_anchor[0]
+
+    def _follow_pattern(self):
+        """Restart the pattern's clock where it is no longer the one it was (``stationary_pattern_time``)."""
+        from .analysis import find_spots, same_pattern
+
+        pts = self.points
+        now = find_spots(pts, self.mesh.triangles, self.c, self.params.c_star)
+        anchor = self._pattern_anchor
+        if anchor is None or not same_pattern(anchor[1], now, self.stepping.stationary_pattern_tol):
+            self._pattern_anchor = (self.t, now, self.c.copy(), pts)
 
     def advance(self) -> StepRecord:
         """Make one accepted step (cutting dt as needed); returns its record.
@@ -948,6 +988,8 @@ class CoupledLoop:
             self.stationary_count += 1
         else:
             self.stationary_count = 0
+        if st.stationary_pattern_time > 0:
+            self._follow_pattern()
         # next step: grow while Δs stays small, never beyond a step that had to be cut,
         # and within the stability limit of the staggering (module docstring)
         grow = st.grow if ds <= 0 else min(st.grow, st.safety * st.ds_max / ds)
@@ -1021,9 +1063,7 @@ class CoupledLoop:
                     status, message = "t_final", f"reached t_final = {self.stepping.t_final:g}"
                     break
                 if self.is_stationary:
-                    status, message = "stationary", (f"stationary at t = {self.t:.6g}: rates of c and shape "
-                                                     f"{self._last_rates[0]:.2g}, {self._last_rates[1]:.2g} per unit "
-                                                     f"time for {self.stationary_count} steps")
+                    status, message = "stationary", f"stationary at t = {self.t:.6g}: {self.stationary_reason}"
                     break
                 if max_steps is not None and k >= max_steps:
                     status, message = "max_steps", f"stopped after {k} steps (max_steps)"
@@ -1063,7 +1103,9 @@ class CoupledLoop:
         step 0), stationary_count, n_rejected, n_snaps, newton_total, last_newton_iterations,
         last_ds, n_vertices, n_free, held_cholesky (whether the last state's Hessian is held as
         a Cholesky factor for the quasi-Newton start of the next step: a resumed loop factorises
-        it again, so that it continues exactly as the uninterrupted one).
+        it again, so that it continues exactly as the uninterrupted one), pattern_anchor_t,
+        pattern_anchor_c and pattern_anchor_points (when and with which c and shape the pattern
+        last changed, for ``stationary_pattern_time``; left out when it is not followed).
         Store with :func:`femshell.io.save_checkpoint`; parameters go in its meta.
         """
         return {"version": STATE_VERSION, "t": float(self.t), "dt": float(self.dt), "step": int(self.step),
@@ -1075,7 +1117,14 @@ class CoupledLoop:
                 "u_prev": (np.zeros(0) if self._u_prev is None else np.asarray(self._u_prev, float).copy()),
                 "h_prev": float(self._h_prev),
                 "n_free": int(self.shell.n_free),
-                "held_cholesky": int(self._held_cholesky())}
+                "held_cholesky": int(self._held_cholesky()),
+                **self._pattern_anchor_state()}
+
+    def _pattern_anchor_state(self) -> dict:
+        a = self._pattern_anchor
+        if a is None:
+            return {}
+        return {"pattern_anchor_t": float(a[0]), "pattern_anchor_c": a[2].copy(), "pattern_anchor_points": a[3].copy()}
 
     def _held_cholesky(self) -> bool:
         held = self._factorizers[0].last
@@ -1115,6 +1164,14 @@ class CoupledLoop:
         self._last_rates = (float("nan"), float("nan"))
         self._last_gain = float("nan")
         self._last_stable = None
+        self._pattern_anchor = None
+        t_a = float(state.get("pattern_anchor_t", float("nan")))
+        c_a = np.array(state.get("pattern_anchor_c", np.zeros(0)), dtype=float)
+        x_a = np.array(state.get("pattern_anchor_points", np.zeros((0, 3))), dtype=float)
+        if math.isfinite(t_a) and c_a.shape == c.shape and x_a.shape == (len(c), 3):
+            from .analysis import find_spots
+
+            self._pattern_anchor = (t_a, find_spots(x_a, self.mesh.triangles, c_a, self.params.c_star), c_a, x_a)
         self.s = self.growth.stretch(self.c)
         self.growth.apply(self.s)
         self._update_curvature()

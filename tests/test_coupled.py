@@ -50,6 +50,8 @@ def test_parameter_validation_names_the_parameter():
         TimeStepping(dt_initial=10.0, dt_max=1.0)
     with pytest.raises(ValueError, match=r"feedback_amplification must be a finite number in \[0.0, 1.0\]"):
         TimeStepping(feedback_amplification=1.5)
+    with pytest.raises(ValueError, match="stationary_pattern_time"):
+        TimeStepping(stationary_pattern_time=-1.0)
     p = MechanochemicalModel(radius=30.0)
     assert p.natural_curvature == pytest.approx(1 / 30) and p.c_max == pytest.approx(0.75)
     assert p.s_max == pytest.approx(1.5)
@@ -181,6 +183,49 @@ def test_spot_makes_an_outward_bulge_that_feeds_itself(ball, spot_run):
     assert [r.step for r in records] == [1, 2, 3]
     assert all(r.ds <= st.ds_max * (1 + 1e-12) for r in records)
     assert records[-1].t == pytest.approx(sum(r.dt for r in records), rel=1e-14)
+
+
+def test_pattern_stop_ends_a_run_whose_regions_hold_while_c_still_changes(ball):
+    # c uniform below c* (no region), H < 0 (no source): c decays as e^{-t} and the rate test
+    # (max|Δc| / (dt c) ≈ β) cannot stop the run while c > 1e-2 c_max; the pattern test stops it
+    # stationary_pattern_time after the first step, whose pattern (none) it keeps
+    p = MechanochemicalModel(h0=H0, radius=R, D=0.0)
+    st = TimeStepping(t_final=20.0, dt_initial=0.1, stationary_pattern_time=1.0)
+    loop = CoupledLoop(ball, p, st, c0=np.full(ball.n_vertices, 0.05))
+    res = loop.run(max_steps=50, keep_records=True)
+    assert res.status == "stationary" and "pattern (0 region(s)" in res.message
+    t_first = res.records[0].t
+    assert t_first + 1.0 <= loop.t < t_first + 1.0 + res.records[-1].dt
+    assert res.records[-1].rate_c == pytest.approx(1.0, rel=0.6)   # c still falls at its own rate
+    assert np.allclose(loop.c, 0.05 * np.exp(-loop.t), rtol=1e-12)
+    plain = CoupledLoop(ball, p, replace(st, stationary_pattern_time=0.0), c0=np.full(ball.n_vertices, 0.05))
+    assert plain.run(max_steps=len(res.records)).status == "max_steps"
+
+
+def test_pattern_stop_of_a_spot_is_the_same_after_a_resume(ball, tmp_path):
+    from femshell.analysis import find_spots, same_pattern
+
+    p = MechanochemicalModel(**SPOT)
+    st = TimeStepping(t_final=30.0, dt_initial=0.05, ramp_ds=0.2, stationary_rate_c=0.0,
+                      stationary_pattern_time=1.0, stationary_pattern_tol=0.02)
+    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+    history = []
+    for rec in loop.iterate(max_steps=150):
+        history.append((loop.t, find_spots(loop.points, ball.triangles, loop.c, p.c_star)))
+        if rec.step == 5:
+            save_checkpoint(tmp_path / "ck.npz", loop.state_dict(), {})
+    assert loop.is_stationary and "stayed the same within 0.02" in loop.stationary_reason
+    t_end, end = history[-1]
+    assert end.n_spots == 1
+    # every pattern of the last stationary_pattern_time is the end's within twice the tolerance
+    window = [m for t, m in history if t >= t_end - 1.0]
+    assert all(same_pattern(end, m, 0.04) for m in window)
+    state, _ = load_checkpoint(tmp_path / "ck.npz")
+    resumed = CoupledLoop.from_state_dict(ball, p, state, st)
+    for _ in resumed.iterate(max_steps=150):
+        pass
+    assert (resumed.step, resumed.t, resumed.pattern_unchanged_for) == (loop.step, loop.t, loop.pattern_unchanged_for)
+    assert np.array_equal(resumed.c, loop.c)
 
 
 def test_resume_from_state_dict_is_bitwise_identical(ball, spot_run, tmp_path):

@@ -308,7 +308,8 @@ def coupled_parameters(scene: Scene):
     except ValueError as exc:
         raise SceneError(f"{scene.label}: [growth]/[chemistry]: {exc}") from None
     kw = {k: so[k] for k in ("t_final", "dt_initial", "dt_min", "dt_max", "ds_max", "grow", "safety", "max_cuts",
-                             "stationary_rate_c", "stationary_rate_x", "stationary_steps", "newton_atol_strain",
+                             "stationary_rate_c", "stationary_rate_x", "stationary_steps", "stationary_pattern_time",
+                             "stationary_pattern_tol", "newton_atol_strain",
                              "ramp_ds", "snap_ds", "snap_max_iter", "quasi_newton", "newton_stall",
                              "feedback_amplification", "max_steps")}
     if so.get("newton_rtol") is not None:
@@ -458,10 +459,12 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
                          f"{ini['elongation']:g}")
         else:
             lines.append("  initial    c = 0")
+        pattern_stop = (f" or pattern unchanged for {so['stationary_pattern_time']:g}"
+                        if so["stationary_pattern_time"] else "")
         lines.append(f"  solver     mechanochemical time loop: t_final={so['t_final']:g}, dt in [{so['dt_min']:g}, "
                      f"{so['dt_max']:g}], ds_max={so['ds_max']:g}, stationary below rates "
-                     f"{so['stationary_rate_c']:g}/{so['stationary_rate_x']:g} for {so['stationary_steps']} steps; "
-                     "Newton to stable equilibria")
+                     f"{so['stationary_rate_c']:g}/{so['stationary_rate_x']:g} for {so['stationary_steps']} steps"
+                     f"{pattern_stop}; Newton to stable equilibria")
     elif kind == "static":
         lines.append(f"  solver     static: {so['steps']} increments of the load factor / growth from 0 to 1, "
                      f"Newton to {'stable ' if so['stable'] else ''}equilibria (up to {so['max_cuts']} cuts)")

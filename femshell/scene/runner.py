@@ -62,7 +62,8 @@ RUN_FILES = (SCENE_FILE, CHECKPOINT, CHECKPOINT + ".prev", fio.SUMMARY_NAME, f"{
              "movie.gif", "movie.mp4")
 RUN_DIRS = ("pictures", "special")
 #: keys that may change between a run and its --resume
-RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop")}
+RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop"),
+                     ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol")}
 FINAL = ("t_final", "stationary", "done", "lam_stop", "max_steps_branch", "fold", "branch", "callback")
 
 
@@ -506,7 +507,7 @@ class TimeRunner(BaseRunner):
     def final_status(self):
         lp = self.loop_
         if lp.is_stationary and lp.t < lp.stepping.t_final:
-            self.message = f"stationary at t = {lp.t:.6g} (c and the shape stopped changing)"
+            self.message = f"stationary at t = {lp.t:.6g} ({lp.stationary_reason})"
             return "stationary"
         self.message = f"reached t_final = {lp.stepping.t_final:g}"
         return "t_final"
@@ -538,7 +539,8 @@ class TimeRunner(BaseRunner):
                 "min_H": float(lp.H_vertex.min()), "energy": lp.energy, "max_stretch": float(lp.s.max()),
                 "radius_min": float(r.min()), "radius_max": float(r.max()), "rejected_steps": lp.n_rejected,
                 "snaps": lp.n_snaps, "non_elliptic_elements": int(lp.non_elliptic),
-                "stationary": bool(lp.is_stationary), "c_max_theory": lp.params.c_max, "pattern": pattern}
+                "stationary": bool(lp.is_stationary), "stationary_reason": lp.stationary_reason,
+                "c_max_theory": lp.params.c_max, "pattern": pattern}
 
     def report_lines(self, fin):
         pat = fin["pattern"]

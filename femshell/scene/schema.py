@@ -272,6 +272,10 @@ SOLVER_KEYS = {
         "stationary_rate_x": Spec(F, 1e-3, "... and the shape slower than this (thicknesses per unit time)",
                                   **NONNEG),
         "stationary_steps": Spec(I, 3, "... for this many steps in a row", lo=1),
+        "stationary_pattern_time": Spec(F, 0.0, "also stop when the pattern (regions of c > c*) has stayed the "
+                                                "same this long, though c may still change (0: off)", **NONNEG),
+        "stationary_pattern_tol": Spec(F, 0.01, "... the same within this (relative area; centroids in mean "
+                                                "region radii)", **NONNEG),
         "newton_atol_strain": Spec(F, 1e-10, "absolute Newton tolerance (in units of a unit strain's residual)",
                                    **NONNEG),
         "ramp_ds": Spec(F, 0.05, "stretch increments of the initial equilibrium", **POS),
