@@ -682,6 +682,7 @@ class CoupledLoop:
         self.u = self.shell.initial_unknowns()
         self.stationary_count = 0
         self._pattern_anchor = None       # (t, PatternMeasures, c, points) since which the pattern is the same
+        self._pattern_now = None          # (step, PatternMeasures) of the last step followed
         self.n_rejected = 0
         self.n_snaps = 0
         self.newton_total = 0
@@ -880,6 +881,7 @@ class CoupledLoop:
 
         pts = self.points
         now = find_spots(pts, self.mesh.triangles, self.c, self.params.c_star)
+        self._pattern_now = (self.step, now)
         anchor = self._pattern_anchor
         if anchor is None or not same_pattern(anchor[1], now, self.stepping.stationary_pattern_tol):
             self._pattern_anchor = (self.t, now, self.c.copy(), pts)
@@ -1013,7 +1015,10 @@ class CoupledLoop:
         from .analysis import count_spots
 
         pts = self.points
-        n_spots = count_spots(pts, self.mesh.triangles, self.c, self.params.c_star)
+        if self._pattern_now is not None and self._pattern_now[0] == self.step:
+            n_spots = self._pattern_now[1].n_spots          # found by _follow_pattern for this step
+        else:
+            n_spots = count_spots(pts, self.mesh.triangles, self.c, self.params.c_star)
         return StepRecord(step=self.step, t=float(self.t), dt=float(dt),
                           newton_iterations=int(self.last_newton_iterations),
                           cuts=int(cuts), max_c=float(self.c.max()) if len(self.c) else 0.0,
@@ -1164,7 +1169,7 @@ class CoupledLoop:
         self._last_rates = (float("nan"), float("nan"))
         self._last_gain = float("nan")
         self._last_stable = None
-        self._pattern_anchor = None
+        self._pattern_anchor = self._pattern_now = None
         t_a = float(state.get("pattern_anchor_t", float("nan")))
         c_a = np.array(state.get("pattern_anchor_c", np.zeros(0)), dtype=float)
         x_a = np.array(state.get("pattern_anchor_points", np.zeros((0, 3))), dtype=float)
