@@ -371,7 +371,7 @@ def count_spots(points, triangles, c, c_star: float, min_area: float | None = No
     return find_spots(points, triangles, c, c_star, min_area=min_area).n_spots
 
 
-def same_pattern(a: PatternMeasures, b: PatternMeasures, tol: float = 0.01) -> bool:
+def same_pattern(a: PatternMeasures, b: PatternMeasures, tol: float = 0.02) -> bool:
     r"""Whether two patterns are the same regions within ``tol``.
 
     Same: equal numbers of spots and of ridges, patterned areas within ``tol`` of each other

@@ -207,7 +207,7 @@ def test_pattern_stop_of_a_spot_is_the_same_after_a_resume(ball, tmp_path):
 
     p = MechanochemicalModel(**SPOT)
     st = TimeStepping(t_final=30.0, dt_initial=0.05, ramp_ds=0.2, stationary_rate_c=0.0,
-                      stationary_pattern_time=1.0, stationary_pattern_tol=0.02)
+                      stationary_pattern_time=1.0)
     loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
     history = []
     for rec in loop.iterate(max_steps=150):

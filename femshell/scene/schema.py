@@ -274,7 +274,7 @@ SOLVER_KEYS = {
         "stationary_steps": Spec(I, 3, "... for this many steps in a row", lo=1),
         "stationary_pattern_time": Spec(F, 0.0, "also stop when the pattern (regions of c > c*) has stayed the "
                                                 "same this long, though c may still change (0: off)", **NONNEG),
-        "stationary_pattern_tol": Spec(F, 0.01, "... the same within this (relative area; centroids in mean "
+        "stationary_pattern_tol": Spec(F, 0.02, "... the same within this (relative area; centroids in mean "
                                                 "region radii)", **NONNEG),
         "newton_atol_strain": Spec(F, 1e-10, "absolute Newton tolerance (in units of a unit strain's residual)",
                                    **NONNEG),
