@@ -1177,7 +1177,9 @@ class CoupledLoop:
         t_a = float(state.get("pattern_anchor_t", float("nan")))
         c_a = np.array(state.get("pattern_anchor_c", np.zeros(0)), dtype=float)
         x_a = np.array(state.get("pattern_anchor_points", np.zeros((0, 3))), dtype=float)
-        if math.isfinite(t_a) and c_a.shape == c.shape and x_a.shape == (len(c), 3):
+        # restored only where it is followed: a stale clock would otherwise be checkpointed on
+        if (self.stepping.stationary_pattern_time > 0 and math.isfinite(t_a) and c_a.shape == c.shape
+                and x_a.shape == (len(c), 3)):
             from .analysis import find_spots
 
             self._pattern_anchor = (t_a, find_spots(x_a, self.mesh.triangles, c_a, self.params.c_star), c_a, x_a)
