@@ -181,7 +181,10 @@ def test_ctrl_c_checkpoints_and_resumes(uninterrupted, tmp_path, monkeypatch):
     assert s["status"] == "interrupted" and s["steps"] == 2 and "--resume" in s["message"]
     assert load_checkpoint(out / "checkpoint.npz")[1]["step"] == 2
     monkeypatch.setattr(CoupledLoop, "advance", real)
-    assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
+    # the command the message suggests works as given, although the run had --set overrides
+    command = s["message"].split("continue with: femshell ")[1].split()
+    assert command == ["run", "--out", str(out), "--resume"]
+    assert main(command + ["-q"]) == 0
     assert_same_run(uninterrupted, out)
 
 

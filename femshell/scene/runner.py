@@ -373,8 +373,8 @@ class BaseRunner:
                 code = 1
             except KeyboardInterrupt:
                 self.status = "interrupted"
-                self.message = (f"interrupted after step {self.step}; continue with: femshell run "
-                                f"{self.scene_arg()} --out {rdp} --resume")
+                # the scene stored in --out already holds any --set overrides of this run
+                self.message = f"interrupted after step {self.step}; continue with: femshell run --out {rdp} --resume"
                 code = 130
             # the last accepted state, whatever happened
             if self.status not in ("interrupted", "failed", "paused") and self.last_frame_step != self.step:
@@ -402,10 +402,6 @@ class BaseRunner:
 
     def final_status(self):
         return "done"
-
-    def scene_arg(self):
-        return str(self.scene.source) if self.scene.source and "femshell/scenes" not in str(self.scene.source) \
-            else self.scene.name
 
     def write_summary(self, pics):
         d = self.scene.data
