@@ -192,6 +192,27 @@ def test_refactorizer_inertia_through_a_loss_of_definiteness(backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
+def test_positive_definite_answers_without_an_ldlt(backend):
+    """The shift search's question, "is A - sigma I positive definite?", against dense eigenvalues:
+    a Cholesky factor (solving right) below the lowest eigenvalue, None above it (singular
+    included), and with PARDISO no LDLᵀ is made for the matrices that fail."""
+    A = laplacian_2d(12, neumann=False).tocsr()
+    ev = np.linalg.eigvalsh(A.toarray())
+    b = np.random.default_rng(2).standard_normal(A.shape[0])
+    r = Refactorizer(backend)
+    for sigma in (0.5 * (ev[0] + ev[1]), ev[0], 0.5 * ev[0], 0.5 * (ev[2] + ev[3]), 0.9 * ev[0]):
+        K = (A - sigma * sp.identity(A.shape[0])).tocsr()
+        f = r.positive_definite(K)
+        assert (f is not None) == (sigma < ev[0]), sigma
+        assert r.last is f
+        if f is not None:
+            assert rel_residual(K, f.solve(b), b) < 1e-10
+    if backend == "pardiso":
+        assert r.counts == {"cholesky": 2, "cholesky_failed": 3, "ldlt": 0}
+    r.free()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_nan_and_inf_entries_are_named(backend):
     A = laplacian_2d(10).astype(float)
     A.data[A.indptr[17]] = np.nan

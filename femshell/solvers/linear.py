@@ -814,6 +814,30 @@ class Refactorizer:
         self._try_spd = inertia is not None and inertia[1] == 0 and inertia[2] == 0
         return self._ldl
 
+    def positive_definite(self, K) -> Factorization | None:
+        """The Cholesky factorisation of K if K is positive definite, else None (and ``last`` None).
+
+        For a caller that needs only that answer, as a search for the shift that makes a
+        Hessian positive definite does for each trial: a failed Cholesky is not followed by
+        an LDLᵀ (which would cost a second, dearer factorisation to report an inertia that
+        is not used). Without PARDISO (no Cholesky here) the LDLᵀ's inertia answers.
+        """
+        self._last = None
+        try:
+            if not self.cholesky_first:
+                f = self._factorize(K)
+                if f.inertia is not None and f.inertia[1] > 0:
+                    return None
+            else:
+                f = self._spd = factorize(K, kind="spd", backend=self.backend, reuse=self._spd)
+                self.counts["cholesky"] += 1
+        except LinearSolverError:          # not positive definite, or singular
+            if self.cholesky_first:
+                self.counts["cholesky_failed"] += 1
+            return None
+        self._last = f
+        return f
+
     def restart(self):
         """Begin a new sequence (a new Newton solve): the next matrix tries Cholesky again, and the
         LDLᵀ is analysed afresh at its next use. PARDISO's LDLᵀ analysis (scaling and weighted
