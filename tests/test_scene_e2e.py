@@ -225,6 +225,66 @@ def test_overwrite_and_render(uninterrupted, tmp_path, capsys):
     assert main(["render", str(tmp_path / "nothing")]) == 2
 
 
+def _files(out):
+    return {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+
+
+def test_overwrite_keeps_the_earlier_run_until_the_new_one_starts(tmp_path, monkeypatch):
+    from femshell.scene import runner
+
+    out = tmp_path / "run"
+    assert run("default", out, overrides=["mesh.n_vertices=150", "solver.t_final=0.02"]) == 0
+    before = _files(out)
+    assert "series_000001.vtu" in before
+
+    def late_bad_input(self):
+        raise ValueError("k0 must be a finite number (simulated: found while building the model)")
+
+    def no_initial_state(self):
+        raise runner.StepFailure("the initial equilibrium diverged (simulated)")
+
+    for initialise, code in ((late_bad_input, 2), (no_initial_state, 1)):
+        monkeypatch.setattr(runner.TimeRunner, "initialise", initialise)
+        assert run("default", out, extra=["--overwrite"], overrides=["mesh.n_vertices=150"]) == code
+        assert _files(out) == before                  # every file of the earlier run, unchanged
+        assert not (out / runner.REPLACED).exists()
+    monkeypatch.undo()
+    # a run that starts replaces it
+    assert run("default", out, extra=["--overwrite"], overrides=["mesh.n_vertices=150", "solver.t_final=0.01"]) == 0
+    assert _files(out)["summary.json"] != before["summary.json"]
+    assert not (out / runner.REPLACED).exists()
+
+
+def test_run_directory_guards(tmp_path, capsys):
+    tiny = ["mesh.n_vertices=150", "solver.t_final=0.02"]
+    out = tmp_path / "run"
+    assert run("default", out, overrides=tiny, extra=["--max-steps", "1"]) == 0
+    # frames alone are femshell output: a new run does not overwrite them
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    (frames / "series_000000.vtu").write_bytes((out / "series_000000.vtu").read_bytes())
+    assert run("default", frames, overrides=tiny) == 2
+    assert [p.name for p in frames.iterdir()] == ["series_000000.vtu"]
+    # a file is not an output directory
+    (tmp_path / "afile").write_text("mine")
+    assert run("default", tmp_path / "afile", overrides=tiny) == 2
+    assert (tmp_path / "afile").read_text() == "mine"
+    # resuming on another mesh (the run's scene.toml deleted, so no scene comparison): refused, untouched
+    (out / "scene.toml").unlink()
+    before = _files(out)
+    capsys.readouterr()
+    assert run("default", out, extra=["--resume"], overrides=["mesh.n_vertices=300", "solver.t_final=0.02"]) == 2
+    assert "was made on a mesh of" in capsys.readouterr().err
+    assert _files(out) == before
+    # resuming without a checkpoint: refused (it used to start again from t = 0 over the frames)
+    for f in out.glob("checkpoint.npz*"):
+        f.unlink()
+    before = _files(out)
+    assert run("default", out, extra=["--resume"], overrides=tiny) == 2
+    assert "no checkpoint.npz to resume from" in capsys.readouterr().err
+    assert _files(out) == before
+
+
 def test_continuation_resume(tmp_path):
     over = ["mesh.edge_length=0.4", "solver.stop=1.1e-4", "solver.max_steps=5", "solver.n_eigs=2",
             "solver.switch_branch=false"]

@@ -14,8 +14,12 @@ Output directory ``DIR`` (``--out``, default ``./<scene name>-out``)::
 Policy (design.md section 4; every file is written atomically by :mod:`femshell.io`):
 
 * A new run refuses a ``DIR`` that already holds a run (finished or not), unless
-  ``--resume`` (continue it) or ``--overwrite`` (delete femshell's files there and start
-  again; other files are left alone) is given. A scene error never touches ``DIR``.
+  ``--resume`` (continue it) or ``--overwrite`` (replace femshell's files there; other
+  files are left alone) is given. A scene error never touches ``DIR``. With ``--overwrite``
+  the earlier run waits in ``DIR/.femshell-replaced`` until the new run has its first
+  checkpoint, and is put back if the new run stops before that (bad input found while
+  building the model, an initial state that cannot be made, Ctrl-C). ``scene.toml`` is
+  written once the run has its first accepted state (or has been restored from a checkpoint).
 * A checkpoint is written after every ``output.checkpoint_every`` accepted steps (1 by
   default): ``kill -9`` loses at most the step in progress. Ctrl-C (SIGINT) and SIGTERM
   stop after writing a checkpoint of the last accepted state and a summary with status
@@ -57,6 +61,8 @@ CHECKPOINT = "checkpoint.npz"
 SCENE_FILE = "scene.toml"
 SERIES = "series"
 LOCK = ".femshell.lock"
+#: where --overwrite keeps the earlier run until the new one has started
+REPLACED = ".femshell-replaced"
 #: femshell's files in a run directory (what --overwrite deletes)
 RUN_FILES = (SCENE_FILE, CHECKPOINT, CHECKPOINT + ".prev", fio.SUMMARY_NAME, f"{SERIES}.pvd", "branch.csv",
              "movie.gif", "movie.mp4")
@@ -101,7 +107,8 @@ class RunDir:
         self.path = Path(path)
 
     def has_run(self) -> bool:
-        return self.path.is_dir() and any((self.path / f).exists() for f in RUN_FILES[:5])
+        return self.path.is_dir() and (any((self.path / f).exists() for f in RUN_FILES)
+                                       or any(self.path.glob(f"{SERIES}_*.vtu")))
 
     def describe(self) -> str:
         s = self.summary()
@@ -121,16 +128,44 @@ class RunDir:
         except (OSError, ValueError):
             return None
 
-    def clear(self):
-        """Delete femshell's files of an earlier run (never other files)."""
-        for f in RUN_FILES:
-            with contextlib.suppress(FileNotFoundError):
-                (self.path / f).unlink()
-        for p in self.path.glob(f"{SERIES}_*.vtu"):
-            p.unlink()
-        for d in RUN_DIRS:
-            if (self.path / d).is_dir():
-                shutil.rmtree(self.path / d)
+    def _run_paths(self):
+        """femshell's files and folders of a run in the directory (never other files)."""
+        return ([self.path / f for f in RUN_FILES if (self.path / f).exists()]
+                + sorted(self.path.glob(f"{SERIES}_*.vtu"))
+                + [self.path / d for d in RUN_DIRS if (self.path / d).is_dir()])
+
+    def set_aside(self):
+        """Move an earlier run's files into ``DIR/.femshell-replaced`` (``--overwrite``).
+
+        They are deleted by :meth:`start` once the new run has its first checkpoint, and put
+        back by :meth:`put_back` when the new run stops before that (bad input found while
+        building it, or an initial state that cannot be made): no output is lost to a run
+        that never started.
+        """
+        aside = self.path / REPLACED
+        if aside.exists():          # left by a run that was killed before it started
+            shutil.rmtree(aside)
+        aside.mkdir()
+        for p in self._run_paths():
+            p.rename(aside / p.name)
+
+    def put_back(self):
+        """Undo :meth:`set_aside`: delete what the new run wrote, restore the earlier run."""
+        aside = self.path / REPLACED
+        if not aside.is_dir():
+            return
+        for p in self._run_paths():
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+        for p in aside.iterdir():
+            p.rename(self.path / p.name)
+        aside.rmdir()
+
+    def start(self, scene):
+        """The new run has its first accepted state: store its scene, drop a replaced run."""
+        fio.atomic_write_text(self.path / SCENE_FILE, "# the scene as run by femshell (every default filled in)\n"
+                                                      + dump_toml(scene.data))
+        if (self.path / REPLACED).is_dir():
+            shutil.rmtree(self.path / REPLACED)
 
     @contextlib.contextmanager
     def lock(self):
@@ -333,7 +368,7 @@ class BaseRunner:
     def checkpoint(self):
         meta = {"kind": self.kind, "step": self.step, "series_time": self.series_time(),
                 "wall_s": self.wall_before + self.p.elapsed, "newton_total": self.newton_total,
-                "resumes": self.resumes, "scene": self.scene.name}
+                "resumes": self.resumes, "scene": self.scene.name, "n_vertices": self.mesh.n_vertices}
         meta.update(self.extra_meta())
         fio.save_checkpoint(self.rd.path / CHECKPOINT, self.state(), meta)
         self.last_ckpt_step = self.step
@@ -354,11 +389,13 @@ class BaseRunner:
             self.restore(state, meta)
             self.writer.truncate_after(float(meta["series_time"]))
             self.last_frame_step = self.last_ckpt_step = self.step
+            self.rd.start(self.scene)
             self.p.say(f"resumed from the checkpoint at step {self.step} ({self.resume_text()})")
         else:
             self.initialise()
             self.write_frame()
             self.checkpoint()
+            self.rd.start(self.scene)
         code = 0
         old_term = None
         try:
@@ -1198,18 +1235,20 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         sc = load_scene(scene, overrides)
     if max_steps is not None and max_steps < 0:
         raise RunDirError(f"--max-steps must be >= 0, got {max_steps}")
+    dest = Path(out) if out else Path(f"{sc.name}-out")
+    if dest.exists() and not dest.is_dir():
+        raise RunDirError(f"--out {dest} is a file, not a directory: choose a directory")
     if dry_run:
         lines, _ = plan(sc)
-        dest = Path(out) if out else Path(f"{sc.name}-out")
         lines.append(f"  out        {dest}/ (nothing computed, nothing written: --dry-run)")
         print("\n".join(lines), file=stream)
         return 0
 
-    rd = RunDir(Path(out) if out else Path(f"{sc.name}-out"))
+    rd = RunDir(dest)
     resume_from = None
     if rd.has_run() and not resume and not overwrite:
         raise RunDirError(f"{rd.path} already holds {rd.describe()}; use --resume to continue it, --overwrite to "
-                          "replace it (femshell's files there are deleted), or choose another --out")
+                          "replace it (femshell's files there are replaced), or choose another --out")
     if resume:
         if not rd.path.is_dir() or not rd.has_run():
             raise RunDirError(f"{rd.path}: nothing to resume (no femshell run there); run without --resume")
@@ -1227,44 +1266,58 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
                                       "resumed:\n  " + "\n  ".join(diffs) + "\n(resume with the same scene, or start "
                                       "a new run with --overwrite or another --out)")
         ck = rd.path / CHECKPOINT
-        if ck.exists() or (rd.path / (CHECKPOINT + ".prev")).exists():
-            try:
-                resume_from = fio.load_checkpoint(ck)
-            except (fio.CheckpointError, FileNotFoundError) as exc:
-                raise RunDirError(f"cannot resume: {exc}") from None
-            if resume_from[1].get("kind") != sc.kind:
-                raise RunDirError(f"{ck}: a checkpoint of a {resume_from[1].get('kind')} run, but the scene runs "
-                                  f"{sc.kind}")
-            summ = rd.summary()
-            if summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step") \
-                    and not _extends(summ, sc):
-                print(f"{rd.path}: the run is already finished (status {summ['status']}, {summ['steps']} steps); "
-                      "nothing to do (extend it with --set solver.t_final=... --resume)", file=stream)
-                return 0
+        if not (ck.exists() or (rd.path / (CHECKPOINT + ".prev")).exists()):
+            raise RunDirError(f"{rd.path}: no {CHECKPOINT} to resume from (the run there has no accepted state, "
+                              "or its checkpoints were deleted); start it again with --overwrite")
+        try:
+            resume_from = fio.load_checkpoint(ck)
+        except (fio.CheckpointError, FileNotFoundError) as exc:
+            raise RunDirError(f"cannot resume: {exc}") from None
+        if resume_from[1].get("kind") != sc.kind:
+            raise RunDirError(f"{ck}: a checkpoint of a {resume_from[1].get('kind')} run, but the scene runs "
+                              f"{sc.kind}")
+        summ = rd.summary()
+        if summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step") \
+                and not _extends(summ, sc):
+            print(f"{rd.path}: the run is already finished (status {summ['status']}, {summ['steps']} steps); "
+                  "nothing to do (extend it with --set solver.t_final=... --resume)", file=stream)
+            return 0
 
     mesh = make_mesh(sc)                    # scene errors of mesh files come before the directory is touched
+    if resume_from is not None:
+        n_ck = resume_from[1].get("n_vertices")
+        if n_ck is not None and n_ck != mesh.n_vertices:
+            raise RunDirError(f"{rd.path / CHECKPOINT} was made on a mesh of {n_ck} vertices, the scene's mesh has "
+                              f"{mesh.n_vertices}: resume with the run's scene (femshell run --out {rd.path} "
+                              "--resume), or start a new run with --overwrite or another --out")
     progress = Progress(stream, interval=sc["output"]["progress_interval"], quiet=quiet)
     with rd.lock():
         if overwrite:
-            rd.clear()
-        fio.atomic_write_text(rd.path / SCENE_FILE, "# the scene as run by femshell (every default filled in)\n"
-                                                    + dump_toml(sc.data))
-        if resume_from is None:
-            head, _ = plan(sc, mesh)
-            for line in head:
-                progress.say(line)
-            progress.say(f"  out        {rd.path}/")
-        elif resume and not quiet:
-            progress.say(f"scene '{sc.name}': resuming the run in {rd.path}/")
-        runner = RUNNERS[sc.kind](sc, mesh, rd, progress=progress, max_steps=max_steps, verbose=verbose)
+            rd.set_aside()                  # put back below if the new run does not start
         try:
+            if resume_from is None:
+                head, _ = plan(sc, mesh)
+                for line in head:
+                    progress.say(line)
+                progress.say(f"  out        {rd.path}/")
+            elif resume and not quiet:
+                progress.say(f"scene '{sc.name}': resuming the run in {rd.path}/")
+            runner = RUNNERS[sc.kind](sc, mesh, rd, progress=progress, max_steps=max_steps, verbose=verbose)
             return runner.run(resume_from)
         except StepFailure as exc:          # the initial state could not be made: nothing to checkpoint
             progress.say(f"failed: {exc}")
-            fio.write_summary(rd.path, {"scene": sc.name, "solver": sc.kind, "status": "failed",
-                                        "message": str(exc), "steps": 0, "parameters": sc.data,
-                                        "wall_s": progress.elapsed})
+            if overwrite:
+                rd.put_back()
+                progress.say(f"the earlier run in {rd.path}/ is kept")
+            else:
+                fio.write_summary(rd.path, {"scene": sc.name, "solver": sc.kind, "status": "failed",
+                                            "message": str(exc), "steps": 0, "parameters": sc.data,
+                                            "wall_s": progress.elapsed})
             return 1
+        except BaseException:               # bad input found while building, or a stop before the start
+            if overwrite:
+                rd.put_back()
+            raise
 
 
 def _extends(summary, sc):
