@@ -75,7 +75,8 @@ def _parser():
                "string; boundary.0.curve=left reaches into lists). Setting mesh.n_vertices drops the file's\n"
                "mesh.edge_length and vice versa. `femshell scenes NAME` prints an embedded scene to start from.\n\n"
                "An --out that holds a run is never overwritten silently: give --resume (continue it) or\n"
-               "--overwrite (delete femshell's files there first). Ctrl-C stops after a checkpoint.\n"
+               "--overwrite (replace femshell's files there; the earlier run is put back if the new one\n"
+               "cannot start). Ctrl-C stops after a checkpoint.\n"
                "exit codes: 0 done (or paused by --max-steps), 1 a step failed, 2 bad input, 130 interrupted")
     r.add_argument("scene", nargs="?", help="a .toml file or the name of an embedded scene (see `femshell scenes`); "
                                             "may be left out with --resume (the scene in --out is used)")
@@ -122,6 +123,8 @@ def _cmd_mesh(args):
         if args.edge_length:
             kw["edge_length"] = args.edge_length
         if args.kind == "hemisphere" and args.hole_angle is not None:
+            if not 0 < args.hole_angle <= 90:
+                raise ValueError(f"--hole-angle must be in (0, 90] degrees, got {args.hole_angle:g}")
             kw["hole_angle"] = math.radians(args.hole_angle)
     elif args.kind == "disk":
         kw.update(radius=args.radius or 1.0, edge_length=args.edge_length, n_vertices=args.vertices,
@@ -132,14 +135,17 @@ def _cmd_mesh(args):
         kw.update(lx=lx, ly=ly) if args.kind == "plate" else kw.update(length=lx, width=ly)
     elif args.kind == "annulus":
         if not (args.inner_radius and args.outer_radius):
-            raise SystemExit("femshell mesh annulus: --inner-radius and --outer-radius are required")
+            raise ValueError("annulus: --inner-radius and --outer-radius are required")
         kw.update(inner_radius=args.inner_radius, outer_radius=args.outer_radius, slit=args.slit,
                   edge_length=args.edge_length or (args.outer_radius - args.inner_radius) / 8)
     elif args.kind == "cylinder":
         radius, length = args.radius or 1.0, args.length or 1.0
         kw.update(radius=radius, length=length, edge_length=args.edge_length or min(radius, length) / 8)
         if args.angle:
-            kw["angle_range"] = tuple(math.radians(a) for a in args.angle)
+            a0, a1 = args.angle
+            if not (math.isfinite(a0) and math.isfinite(a1) and 0 < a1 - a0 < 360):
+                raise ValueError(f"--angle THETA0 THETA1 must have 0 < THETA1 - THETA0 < 360 degrees, got {a0:g} {a1:g}")
+            kw["angle_range"] = (math.radians(a0), math.radians(a1))
     t0 = time.perf_counter()
     mesh = getattr(g, args.kind)(**{k: v for k, v in kw.items() if v is not None})
     elapsed = time.perf_counter() - t0
@@ -161,7 +167,7 @@ def _cmd_validate(args):
     names = list(cases) if args.name == ["all"] else args.name
     unknown = [n for n in names if n not in cases]
     if unknown:
-        raise SystemExit(f"unknown validation case(s): {', '.join(unknown)}; available: {', '.join(cases)}")
+        raise ValueError(f"unknown validation case(s): {', '.join(unknown)}; available: {', '.join(cases)}")
     ok = True
     for name in names:
         print(f"== {name} ({args.level})")

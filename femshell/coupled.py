@@ -362,7 +362,8 @@ def gaussian_spot(points, amplitude: float, width: float, *, pole=(0.0, 0.0, 1.0
         phi = np.arctan2(d @ e2, d @ e1)
         xi, eta = rho * np.cos(phi), rho * np.sin(phi)
     r2 = (xi / elongation) ** 2 + eta**2
-    return amplitude * np.exp(-r2 / width**2)
+    # a width beyond 1e150 is a uniform field; width**2 would raise OverflowError there
+    return amplitude * np.exp(-r2 / (width**2 if width < 1e150 else math.inf))
 
 
 @dataclass(frozen=True)
@@ -918,7 +919,7 @@ class CoupledLoop:
                                    + self._non_elliptic_hint())
             try:
                 c_new = self.chemistry.step(self.c, h, source=source, points=points)
-            except (ValueError, FloatingPointError, ArithmeticError) as exc:
+            except (ValueError, FloatingPointError, ArithmeticError, LinearSolverError) as exc:
                 self.growth.apply(self.s)
                 raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: the chemistry step failed: "
                                    f"{exc}") from exc

@@ -362,11 +362,11 @@ class Frame:
 
 def read_frame(path, time: float = float("nan")) -> Frame:
     """Read one VTU frame written by :class:`TimeSeriesWriter` (triangles only)."""
-    import meshio
+    from .mesh.io import meshio_read
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such frame file")
-    m = meshio.read(path)
+    m = meshio_read(path)
     blocks = [i for i, c in enumerate(m.cells) if c.type == "triangle"]
     if not blocks:
         raise ValueError(f"{path}: no triangle cells")
@@ -597,35 +597,40 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
 def _read_checkpoint(path: Path):
     try:
         # our own handle: np.load leaks the one it opens when the file is not an archive
-        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-            if _HEADER_KEY not in z.files:
-                raise CheckpointError(f"{path}: not a femshell checkpoint (no header)")
-            header = json.loads(bytes(z[_HEADER_KEY]).decode("utf-8"))
-            if header.get("format") != CHECKPOINT_FORMAT:
-                raise CheckpointError(f"{path}: not a femshell checkpoint (format {header.get('format')!r})")
-            if header.get("version", 0) > CHECKPOINT_VERSION:
-                raise CheckpointError(f"{path}: checkpoint version {header.get('version')} is newer than "
-                                      f"this femshell reads ({CHECKPOINT_VERSION})")
-            kinds = header["kinds"]
-            missing = sorted(set(kinds) - set(z.files))
-            if missing:
-                raise CheckpointError(f"{path}: state entries missing: {', '.join(missing)}")
-            state = {}
-            for k, kind in kinds.items():
-                a = z[k]   # reading each member checks its CRC
-                if kind == "array":
-                    state[k] = a
-                elif kind == "float":
-                    state[k] = float(a)
-                elif kind == "int":
-                    state[k] = int(a)
-                elif kind == "bool":
-                    state[k] = bool(a)
-                elif kind == "str":
-                    state[k] = str(a)
-                else:
-                    raise CheckpointError(f"{path}: unknown kind {kind!r} of state '{k}'")
-            return state, header.get("meta", {})
+        with open(path, "rb") as fh:
+            # anything but a zip archive would reach np.load's pickle branch and its advice to unpickle
+            if fh.read(4) != b"PK\x03\x04":
+                raise CheckpointError(f"{path}: not a femshell checkpoint (not an .npz archive)")
+            fh.seek(0)
+            with np.load(fh, allow_pickle=False) as z:
+                if _HEADER_KEY not in z.files:
+                    raise CheckpointError(f"{path}: not a femshell checkpoint (no header)")
+                header = json.loads(bytes(z[_HEADER_KEY]).decode("utf-8"))
+                if header.get("format") != CHECKPOINT_FORMAT:
+                    raise CheckpointError(f"{path}: not a femshell checkpoint (format {header.get('format')!r})")
+                if header.get("version", 0) > CHECKPOINT_VERSION:
+                    raise CheckpointError(f"{path}: checkpoint version {header.get('version')} is newer than "
+                                          f"this femshell reads ({CHECKPOINT_VERSION})")
+                kinds = header["kinds"]
+                missing = sorted(set(kinds) - set(z.files))
+                if missing:
+                    raise CheckpointError(f"{path}: state entries missing: {', '.join(missing)}")
+                state = {}
+                for k, kind in kinds.items():
+                    a = z[k]   # reading each member checks its CRC
+                    if kind == "array":
+                        state[k] = a
+                    elif kind == "float":
+                        state[k] = float(a)
+                    elif kind == "int":
+                        state[k] = int(a)
+                    elif kind == "bool":
+                        state[k] = bool(a)
+                    elif kind == "str":
+                        state[k] = str(a)
+                    else:
+                        raise CheckpointError(f"{path}: unknown kind {kind!r} of state '{k}'")
+                return state, header.get("meta", {})
     except CheckpointError:
         raise
     except FileNotFoundError:

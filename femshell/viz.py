@@ -455,7 +455,7 @@ def _pick_field(frame, field):
             return field, pdata[field]
         if field in cdata:
             return field, cdata[field]
-        raise KeyError(f"{frame.path}: no field '{field}' (point fields: {', '.join(pdata) or 'none'}; "
+        raise ValueError(f"{frame.path}: no field '{field}' (point fields: {', '.join(pdata) or 'none'}; "
                        f"cell fields: {', '.join(cdata) or 'none'})")
     if "c" in pdata:
         return "c", pdata["c"]

@@ -73,6 +73,8 @@ def test_gaussian_spot(ball):
     assert ce[near & (np.abs(ball.points[:, 0]) > 1.5)].max() > ce[near & (np.abs(ball.points[:, 1]) > 1.5)].max()
     cc = gaussian_spot(ball.points, 1.0, 1.0, distance="chord")
     assert cc.argmax() == top and cc[top] == pytest.approx(1.0, rel=5e-3)
+    # a width past float range squared is a uniform field (width**2 raised OverflowError)
+    assert np.array_equal(gaussian_spot(ball.points, 0.5, 1e200), np.full(ball.n_vertices, 0.5))
 
 
 def test_growth_coupling_targets(ball):
@@ -255,6 +257,23 @@ def test_a_step_that_cannot_be_made_keeps_the_last_state(ball, spot_run):
     with pytest.raises(CoupledError, match="cuts"):
         lp.advance()
     assert "ellipticity" not in res.message
+
+
+def test_a_chemistry_factorisation_failure_is_a_failed_step(ball, spot_run, monkeypatch):
+    """A singular reaction-diffusion matrix (as D = 1e300 makes) ends the step cleanly, state kept."""
+    from femshell.chemistry import ReactionDiffusion
+    from femshell.solvers.linear import LinearSolverError
+
+    p, st, loop, initial, states, records = spot_run
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+
+    def singular(self, *a, **k):
+        raise LinearSolverError("PARDISO Cholesky found a zero or negative pivot (simulated)")
+
+    monkeypatch.setattr(ReactionDiffusion, "step", singular)
+    with pytest.raises(CoupledError, match="the chemistry step failed: PARDISO Cholesky"):
+        lp.advance()
+    assert lp.step == 2 and np.array_equal(lp.c, states[2]["c"])
 
 
 def test_ctrl_c_mid_step_ends_on_the_last_accepted_state_checkpointed(ball, spot_run):

@@ -213,6 +213,12 @@ def test_checkpoint_falls_back_to_prev_when_corrupt(tmp_path):
     (tmp_path / "checkpoint.npz.prev").write_bytes(b"garbage")
     with pytest.raises(CheckpointError, match="no readable checkpoint"):
         load_checkpoint(p)
+    # random bytes: named as not a checkpoint, without numpy's advice to unpickle them
+    p.write_bytes(np.random.default_rng(0).bytes(2000))
+    (tmp_path / "checkpoint.npz.prev").unlink()
+    with pytest.raises(CheckpointError, match="not an .npz archive") as err:
+        load_checkpoint(p)
+    assert "pickle" not in str(err.value)
     with pytest.raises(FileNotFoundError, match="no checkpoint"):
         load_checkpoint(tmp_path / "missing.npz")
     with warnings.catch_warnings():

@@ -45,6 +45,9 @@ def test_disk_command_has_inner_circle(tmp_path):
 @pytest.mark.parametrize("args, words", [
     (["mesh", "sphere", "--radius", "-1", "-o", "x.vtu"], "--radius must be > 0"),
     (["mesh", "sphere", "--radius", "1", "-o", "x.txt"], ".vtu"),
+    (["mesh", "hemisphere", "--hole-angle", "95", "-o", "x.vtu"], "(0, 90] degrees, got 95"),
+    (["mesh", "cylinder", "--angle", "0", "400", "-o", "x.vtu"], "< 360 degrees, got 0 400"),
+    (["mesh", "annulus", "-o", "x.vtu"], "--inner-radius and --outer-radius are required"),
 ])
 def test_mesh_command_bad_input(tmp_path, args, words):
     r = _run(*[a if a != "x.vtu" and a != "x.txt" else str(tmp_path / a) for a in args])

@@ -375,6 +375,11 @@ def test_reuses_a_running_gmsh_session():
     (lambda: cylinder(angle_range=1.0), "angle_range"),
     (lambda: hemisphere(hole_angle=0.0), "hole_angle"),
     (lambda: hemisphere(hole_angle=math.pi / 2), "hole_angle"),
+    # outside the range gmsh handles: 1e30 exhausted the memory, 1e-300 divided by zero
+    (lambda: sphere(radius=1e30, n_vertices=500), r"radius must be in \[1e-06, 100000\]"),
+    (lambda: sphere(radius=1e-300, n_vertices=500), r"radius must be in \[1e-06, 100000\]"),
+    (lambda: plate(lx=1e7), "lx must be in"),
+    (lambda: cylinder(length=1e-9), "length must be in"),
 ])
 def test_argument_errors_name_the_parameter(call, word):
     with pytest.raises(ValueError, match=word):

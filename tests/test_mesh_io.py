@@ -146,6 +146,14 @@ def test_damaged_file(tmp_path):
         read_mesh(tmp_path / "bad.vtu")
 
 
+@pytest.mark.parametrize("name", ["text.vtu", "text.msh", "empty.vtu"])
+def test_unreadable_file_is_a_mesh_error_not_an_exit(tmp_path, name):
+    # meshio prints and calls sys.exit(1) for these: the message must come back as a MeshError
+    (tmp_path / name).write_text("" if name.startswith("empty") else "just some text\n")
+    with pytest.raises(MeshError, match=f"cannot read mesh file .*{name}: Couldn't read file"):
+        read_mesh(tmp_path / name)
+
+
 def test_foreign_file_without_names(tmp_path):
     # a plain meshio file: lines without names or ids are one curve, stray points are dropped
     import meshio

@@ -122,6 +122,11 @@ def test_each_error_is_one_clear_line(tmp_path, errors_of, extra, expected):
     assert all(e.startswith("scene.toml: ") and "\n" not in e for e in errs)
 
 
+def test_natural_curvature_must_be_finite(tmp_path, errors_of):
+    errs = errors_of(tmp_path, SPHERE, ["shell.natural_curvature=nan"])
+    assert errs == ['scene.toml: [shell] natural_curvature = nan must be a finite number or one of "mesh"']
+
+
 def test_shell_thickness_type_and_range(tmp_path, errors_of):
     errs = errors_of(tmp_path, SPHERE.replace("thickness = 1.0", 'thickness = "2"'))
     assert any("[shell] thickness = \"2\" must be a number, got a string" in e for e in errs)
@@ -300,6 +305,22 @@ def test_mesh_file_scene_and_its_curves(tmp_path):
     p = write(tmp_path, text.replace('curve = "left"', 'curve = "west"'))
     with pytest.raises(SceneError, match=r"curve = \"west\" is not a boundary curve of p.vtu \(curves: "):
         make_mesh(load_scene(str(p)))
+
+
+def test_mesh_file_with_a_defect_is_a_scene_error(tmp_path):
+    """A drawn mesh is checked like a generated one: a collapsed triangle is named, not met in the model."""
+    from femshell.mesh import plate, write_mesh
+    from femshell.mesh.surface import SurfaceMesh
+    from femshell.scene import make_mesh
+
+    m = plate(1.0, 1.0, edge_length=0.25, structured=True)
+    pts = m.points.copy()
+    pts[6] = pts[7]                           # vertex 6 onto its neighbour: two triangles of area 0
+    write_mesh(SurfaceMesh(pts, m.triangles, m.boundary), tmp_path / "p.vtu")
+    text = PLATE.replace('kind = "plate"\nlx = 1.0\nly = 1.0\nedge_length = 0.25\nstructured = true',
+                         'file = "p.vtu"')
+    with pytest.raises(SceneError, match=r"(?s)\[mesh\] file: mesh 'p.vtu' is invalid .*degenerate triangles: triangle 3 has area 0"):
+        make_mesh(load_scene(str(write(tmp_path, text))))
 
 
 def test_membrane_law_reaches_the_shell(tmp_path):

@@ -53,6 +53,8 @@ __all__ = ["sphere", "disk", "plate", "strip", "annulus", "cylinder", "hemispher
 MESH_ALGORITHM = 6
 #: Largest mesh a generator will try to build (a guard against typos such as edge_length=1e-4).
 MAX_VERTICES = 5_000_000
+#: Range of the geometric sizes (radius, length, width) the generators accept (see ``_size``).
+MIN_SIZE, MAX_SIZE = 1e-6, 1e5
 
 # Calibration of n_vertices <-> edge_length (measured with gmsh 4.15, algorithm 6, for
 # 500..100 000 vertices, see validation/benchmarks/mesh_timing.py): a surface of area A
@@ -79,6 +81,20 @@ def _positive(name, value, upper=None, upper_text=None, lower=0.0):
     hi = "inf" if upper is None else (upper_text or f"{upper:g}")
     if not math.isfinite(v) or v <= lower or (upper is not None and v > upper):
         raise ValueError(f"{name} must be in ({lower:g}, {hi}], got {value!r}")
+    return v
+
+
+def _size(name, value):
+    """A geometric size (radius, length, width) in [MIN_SIZE, MAX_SIZE], or a ValueError naming the range.
+
+    gmsh works with an absolute geometric tolerance: outside this range (measured: a sphere of
+    radius 1e-8 comes out non-manifold, one of 1e6 without triangles, one of 1e30 exhausts the
+    memory) the generators fail, so a size there asks for other units instead.
+    """
+    v = _positive(name, value)
+    if not MIN_SIZE <= v <= MAX_SIZE:
+        raise ValueError(f"{name} must be in [{MIN_SIZE:g}, {MAX_SIZE:g}] (the range the mesh generator handles: "
+                         f"choose units that bring the geometry into it), got {value!r}")
     return v
 
 
@@ -321,7 +337,7 @@ def sphere(radius=1.0, n_vertices=None, edge_length=None, seed=0) -> SurfaceMesh
     >>> abs(m.n_vertices - 2500) < 250
     True
     """
-    R = _positive("radius", radius)
+    R = _size("radius", radius)
     seed = _seed(seed)
     h = _resolution(edge_length, n_vertices, 4 * math.pi * R * R, SPHERE_LINEAR * R, R, "radius", AREA_FACTOR)
     with _gmsh_model(seed) as gmsh:
@@ -353,7 +369,7 @@ def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner
     >>> sorted(m.boundary), m.topology.euler_characteristic
     (['inner', 'outer'], 1)
     """
-    R = _positive("radius", radius)
+    R = _size("radius", radius)
     seed = _seed(seed)
     h = _resolution(edge_length, n_vertices, math.pi * R * R, BOUNDARY_LINEAR * 2 * math.pi * R, R, "radius")
     r = None if inner_radius is None else _positive("inner_radius", inner_radius, R, f"{R:g} (the radius)")
@@ -503,8 +519,8 @@ def plate(lx=1.0, ly=1.0, edge_length=None, structured=False, seed=0, *, diagona
     >>> m.n_vertices, m.n_triangles, sorted(m.boundary)
     (15, 16, ['bottom', 'left', 'right', 'top'])
     """
-    lx = _positive("lx", lx)
-    ly = _positive("ly", ly)
+    lx = _size("lx", lx)
+    ly = _size("ly", ly)
     return _rectangle(lx, ly, edge_length, n_vertices, structured, diagonal, seed, "plate")
 
 
@@ -518,8 +534,8 @@ def strip(length=10.0, width=1.0, edge_length=None, structured=False, seed=0, *,
     >>> sorted(strip(10.0, 1.0, edge_length=0.25, structured=True).boundary)
     ['bottom', 'left', 'right', 'top']
     """
-    length = _positive("length", length)
-    width = _positive("width", width)
+    length = _size("length", length)
+    width = _size("width", width)
     return _rectangle(length, width, edge_length, n_vertices, structured, diagonal, seed, "strip")
 
 
@@ -568,7 +584,7 @@ def annulus(inner_radius=0.5, outer_radius=1.0, edge_length=None, slit=False, se
     >>> sorted(m.boundary), m.topology.euler_characteristic
     (['inner', 'outer', 'slit-a', 'slit-b'], 1)
     """
-    R = _positive("outer_radius", outer_radius)
+    R = _size("outer_radius", outer_radius)
     r = _positive("inner_radius", inner_radius, R, f"{R:g} (the outer_radius)")
     if r >= R:
         raise ValueError(f"inner_radius must be in (0, {R:g}) (less than outer_radius), got {inner_radius!r}")
@@ -624,8 +640,8 @@ def cylinder(radius=1.0, length=1.0, edge_length=None, angle_range=None, seed=0,
     >>> sorted(m.boundary), m.topology.euler_characteristic
     (['bottom', 'top'], 0)
     """
-    R = _positive("radius", radius)
-    L = _positive("length", length)
+    R = _size("radius", radius)
+    L = _size("length", length)
     seed = _seed(seed)
     if angle_range is None:
         t0, t1 = 0.0, 2 * math.pi
@@ -686,7 +702,7 @@ def hemisphere(radius=1.0, edge_length=None, n_vertices=None, hole_angle=None, s
     >>> sorted(m.boundary), m.topology.euler_characteristic
     (['equator', 'hole'], 0)
     """
-    R = _positive("radius", radius)
+    R = _size("radius", radius)
     seed = _seed(seed)
     if hole_angle is not None:
         hole = _positive("hole_angle", hole_angle, math.pi / 2, "pi/2")

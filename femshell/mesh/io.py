@@ -40,8 +40,11 @@ Example
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import shutil
+import sys
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -185,6 +188,26 @@ def _add_xdmf_information(path, field_data):
 
 # ----------------------------------------------------------------------------- read
 
+def meshio_read(path, file_format=None):
+    """``meshio.read`` that raises :class:`MeshError` (a ValueError) for a damaged file.
+
+    meshio prints why a file could not be read and then calls ``sys.exit(1)``: its words go
+    into the message instead, and the process lives on.
+    """
+    import meshio
+
+    said = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            raw = meshio.read(path, file_format=file_format)
+    except (Exception, SystemExit) as exc:   # meshio raises assorted errors for damaged files
+        why = " ".join(said.getvalue().split()).removeprefix("Error: ") or str(exc) or type(exc).__name__
+        raise MeshError(f"cannot read mesh file {path}: {why}") from None
+    if said.getvalue().strip():
+        sys.stderr.write(said.getvalue())
+    return raw
+
+
 def read_mesh(path, with_data=False):
     """Read a surface mesh from a .msh, .vtu or .xdmf file.
 
@@ -200,16 +223,11 @@ def read_mesh(path, with_data=False):
 
     >>> mesh = read_mesh("meshes/sphere_r1_500.vtu")     # doctest: +SKIP
     """
-    import meshio
-
     path = Path(path)
     fmt = _format(path)
     if not path.is_file():
         raise FileNotFoundError(f"mesh file not found: {path}")
-    try:
-        raw = meshio.read(path, file_format="gmsh" if fmt == "gmsh22" else fmt)
-    except Exception as exc:   # meshio raises assorted errors for damaged files
-        raise MeshError(f"cannot read mesh file {path}: {exc}") from exc
+    raw = meshio_read(path, "gmsh" if fmt == "gmsh22" else fmt)
 
     blocks = [(i, c) for i, c in enumerate(raw.cells) if c.type == "triangle"]
     if not blocks:

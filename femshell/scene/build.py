@@ -102,8 +102,10 @@ def make_mesh(scene: Scene):
     kind = m.pop("kind")
     try:
         if kind == "file":
+            from ..mesh import check_mesh
             from ..mesh.io import read_mesh
             mesh = read_mesh(m["file"])
+            check_mesh(mesh)    # a drawn mesh may be degenerate, tangled or misoriented: say so before building
         else:
             kw = {k: v for k, v in m.items() if v is not None}
             if kind == "hemisphere" and "hole_angle" in kw:

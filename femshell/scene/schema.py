@@ -249,8 +249,11 @@ SOLVER_KEYS = {
         "ds_max": Spec(F, None, "largest step (default 2 ds)", **POS),
         "max_steps": Spec(I, 200, "accepted steps of one branch", lo=1),
         "n_eigs": Spec(I, 3, "smallest eigenvalues recorded per step", lo=0, hi=20),
-        "parameter_scale": Spec(F, None, "scale of the parameter in the arclength (default |stop - start|)", **POS),
-        "length_scale": Spec(F, None, "scale of displacements in the arclength (default the thickness)", **POS),
+        # bounded: their squares weigh the arclength norm and must stay finite and non-zero in float64
+        "parameter_scale": Spec(F, None, "scale of the parameter in the arclength (default |stop - start|)",
+                                lo=1e-12, hi=1e12),
+        "length_scale": Spec(F, None, "scale of displacements in the arclength (default the thickness)",
+                             lo=1e-12, hi=1e12),
         "detect": Spec(B, True, "locate folds and branch points"),
         "stop_at": Spec("strlist", [], "stop after a 'fold' or 'branch' point"),
         "switch_branch": Spec(B, False, "then follow the branch born at the first branch point"),
@@ -493,6 +496,9 @@ class _Checker:
                     return None
             elif isnum:
                 v = float(v)
+                if not math.isfinite(v):
+                    self.err(f"{shown} must be a finite number or one of {', '.join(_show(c) for c in spec.choices)}")
+                    return None
             else:
                 return self._type(shown, f"a number or {', '.join(_show(c) for c in spec.choices)}", v)
         if k in (F, I) or (k == "num_or_str" and isnum):
