@@ -109,6 +109,9 @@ def test_out_of_range_names_key_and_range(tmp_path, errors_of):
     ("[growth]\nlaw = \"contractility\"\nlam_min = 20.0\n", "lam_max = 15 is out of range: lam_min = 20 <= lam_max"),
     ("[growth]\nlaw = \"contractility\"\nb = -1.0\n", "[growth] b = -1.0 is out of range: 0 < b"),
     ("[chemistry]\nD = -0.1\n", "[chemistry] D = -0.1 is out of range: 0 <= D"),
+    ("[chemistry]\nD = 1e300\n", "[chemistry] D = 1e+300 is out of range: a non-zero number's magnitude must be in "
+                                  "[1e-30, 1e+30]"),
+    ("[initial]\npole = [0.0, 0.0, 1e-40]\n", "[initial] pole = [0.0, 0.0, 1e-40] is out of range: a non-zero"),
     ("[initial]\nwidth = \"wide\"\n", "[initial] width = \"wide\" must be a number, got a string"),
     ("[output]\nevery = 1.5\n", "[output] every = 1.5 must be an integer"),
     ("[output]\nfields = [\"c\", \"Lamda\"]\n", "unknown field 'Lamda'; did you mean 'Lambda'?"),

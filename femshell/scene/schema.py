@@ -33,6 +33,8 @@ one :class:`SceneError` listing every problem, one line each, naming the key pat
     scene.toml: [material] nu = 0.7 is out of range: 0 <= nu <= 0.5
     scene.toml: [materail] is not a section; did you mean [material]?
 
+Every number is finite, and a non-zero one has a magnitude in ``MAGNITUDE`` = [1e-30, 1e30].
+
 Overrides (``femshell run SCENE --set solver.t_final=5``): ``section.key=value`` where
 value is TOML (``3``, ``0.5``, ``true``, ``"text"``, ``[1, 2]``) or a bare word taken as
 a string (``--set mesh.kind=disk``); ``boundary.0.curve=left`` reaches into the list of
@@ -112,6 +114,9 @@ def _show(v):
 
 
 F, I, B, S = "float", "int", "bool", "str"
+#: Magnitude of any non-zero number in a scene: a guard against overflow and underflow in the
+#: products of scene numbers that the energies and the chemistry form (E h³ κ², w Hs/β, D dt).
+MAGNITUDE = (1e-30, 1e30)
 POS = dict(lo=0.0, lo_open=True)
 NONNEG = dict(lo=0.0)
 
@@ -501,6 +506,12 @@ class _Checker:
                     return None
             else:
                 return self._type(shown, f"a number or {', '.join(_show(c) for c in spec.choices)}", v)
+        if k in (F, "vec3", "pair") or (k == "num_or_str" and isnum):
+            lo, hi = MAGNITUDE
+            if any(x != 0 and not lo <= abs(x) <= hi for x in (v if isinstance(v, list) else [v])):
+                self.err(f"{shown} is out of range: a non-zero number's magnitude must be in [{lo:g}, {hi:g}] "
+                         "(a guard against overflow in products such as E h³ κ², w Hs/β, D dt; choose other units)")
+                return None
         if k in (F, I) or (k == "num_or_str" and isnum):
             bad = ((spec.lo is not None and (v <= spec.lo if spec.lo_open else v < spec.lo))
                    or (spec.hi is not None and (v >= spec.hi if spec.hi_open else v > spec.hi)))
