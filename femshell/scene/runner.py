@@ -63,7 +63,7 @@ SERIES = "series"
 LOCK = ".femshell.lock"
 #: where --overwrite keeps the earlier run until the new one has started
 REPLACED = ".femshell-replaced"
-#: femshell's files in a run directory (what --overwrite deletes)
+#: femshell's files in a run directory (what --overwrite replaces)
 RUN_FILES = (SCENE_FILE, CHECKPOINT, CHECKPOINT + ".prev", fio.SUMMARY_NAME, f"{SERIES}.pvd", "branch.csv",
              "movie.gif", "movie.mp4")
 RUN_DIRS = ("pictures", "special")
