@@ -5,6 +5,7 @@ import subprocess
 import sys
 import textwrap
 
+import numpy as np
 import pytest
 
 from femshell.cli import main
@@ -324,6 +325,23 @@ def test_mesh_file_with_a_defect_is_a_scene_error(tmp_path):
                          'file = "p.vtu"')
     with pytest.raises(SceneError, match=r"(?s)\[mesh\] file: mesh 'p.vtu' is invalid .*degenerate triangles: triangle 3 has area 0"):
         make_mesh(load_scene(str(write(tmp_path, text))))
+
+
+def test_free_mesh_file_of_two_pieces_is_a_scene_error(tmp_path):
+    """Only one piece would be pinned against rigid motion: the other's Hessian is singular."""
+    from femshell.mesh import plate, write_mesh
+    from femshell.mesh.surface import SurfaceMesh
+    from femshell.scene import make_mesh
+
+    m = plate(1.0, 1.0, edge_length=0.25, structured=True)
+    two = SurfaceMesh(np.vstack([m.points, m.points + [2.0, 0.0, 0.0]]),
+                      np.vstack([m.triangles, m.triangles + m.n_vertices]))
+    write_mesh(two, tmp_path / "two.vtu")
+    text = PLATE.replace('kind = "plate"\nlx = 1.0\nly = 1.0\nedge_length = 0.25\nstructured = true',
+                         'file = "two.vtu"')
+    free = text.split("[[boundary]]")[0] + "[solver]" + text.split("[solver]")[1]
+    with pytest.raises(SceneError, match="two.vtu has 2 separate pieces; a free shell is pinned"):
+        make_mesh(load_scene(str(write(tmp_path, free))))
 
 
 def test_membrane_law_reaches_the_shell(tmp_path):

@@ -105,7 +105,11 @@ def make_mesh(scene: Scene):
             from ..mesh import check_mesh
             from ..mesh.io import read_mesh
             mesh = read_mesh(m["file"])
-            check_mesh(mesh)    # a drawn mesh may be degenerate, tangled or misoriented: say so before building
+            report = check_mesh(mesh)   # a drawn mesh may be degenerate, tangled or misoriented: say so now
+            if report.n_components > 1 and not scene["boundary"]:
+                raise ValueError(f"{Path(m['file']).name} has {report.n_components} separate pieces; a free shell "
+                                 "is pinned against rigid motion as one piece, so give each piece supports "
+                                 "([[boundary]]) or use a mesh of one piece")
         else:
             kw = {k: v for k, v in m.items() if v is not None}
             if kind == "hemisphere" and "hole_angle" in kw:
