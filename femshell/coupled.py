@@ -822,15 +822,17 @@ class CoupledLoop:
             start = u if u_prev is None else self._predict(u, u_prev, (trial - lam) / (lam - lam_prev))
             try:
                 res = self._newton(start)
-                ok = bool(np.all(np.isfinite(res.u)) and math.isfinite(res.energy))
+                finite = np.all(np.isfinite(res.u)) and math.isfinite(res.energy)
+                why = ("Newton returned a non-finite state" if not finite else
+                       f"a saddle, {res.n_negative} negative eigenvalues" if res.stable is False else None)
             except NewtonError as exc:
-                ok, res = False, exc
-            if not ok:
+                why = exc
+            if why is not None:
                 cuts += 1
                 if cuts > st.max_cuts or dlam < 1e-6:
                     self.growth.apply(ones + lam * (target - ones))
                     raise CoupledError(f"initial equilibrium: Newton failed at growth fraction {trial:.4g} "
-                                       f"after {cuts} cuts of the ramp ({res})")
+                                       f"after {cuts} cuts of the ramp ({why})")
                 dlam *= 0.5
                 self._say(f"  initial equilibrium: Newton failed at fraction {trial:.4g}; ramp step cut to {dlam:.3g}")
                 continue
@@ -951,6 +953,8 @@ class CoupledLoop:
                         ok, reason = False, f"Newton failed: {exc}"
                 if ok and not (np.all(np.isfinite(res.u)) and math.isfinite(res.energy)):
                     ok, reason = False, "Newton returned a non-finite state"
+                if ok and res.stable is False:      # never accept a saddle (minimize's round-off exit)
+                    ok, reason = False, f"the equilibrium is a saddle ({res.n_negative} negative eigenvalues)"
                 if not ok:
                     self.growth.apply(self.s)           # back to the accepted rest state
             if ok:

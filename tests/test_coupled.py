@@ -276,6 +276,23 @@ def test_a_chemistry_factorisation_failure_is_a_failed_step(ball, spot_run, monk
     assert lp.step == 2 and np.array_equal(lp.c, states[2]["c"])
 
 
+def test_a_saddle_returned_by_newton_is_never_accepted(ball, spot_run, monkeypatch):
+    """minimize can return stable = False (its round-off exit without an inertia): the step is cut, not taken."""
+    from dataclasses import replace as dc_replace
+
+    p, st, loop, initial, states, records = spot_run
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], dc_replace(st, max_cuts=2))
+    real = CoupledLoop._newton
+
+    def saddle(self, start):
+        return dc_replace(real(self, start), stable=False, n_negative=1)
+
+    monkeypatch.setattr(CoupledLoop, "_newton", saddle)
+    with pytest.raises(CoupledError, match=r"the equilibrium is a saddle \(1 negative eigenvalues\)"):
+        lp.advance()
+    assert lp.step == 2 and np.array_equal(lp.u, states[2]["u"])
+
+
 def test_ctrl_c_mid_step_ends_on_the_last_accepted_state_checkpointed(ball, spot_run):
     p, st, loop, initial, states, records = spot_run
     lp = CoupledLoop.from_state_dict(ball, p, states[2], st)

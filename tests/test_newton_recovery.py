@@ -316,3 +316,47 @@ def test_a_creeping_newton_gives_up_after_the_stall_window_and_a_converging_one_
     a = minimize(springs, np.zeros(8), rtol=1e-10, stall=3, log=None)
     b = minimize(springs, np.zeros(8), rtol=1e-10, log=None)
     assert a.converged and a.iterations == b.iterations > 3
+
+
+# ----------------------------------------------------------------------------- starts at an exact equilibrium
+
+def _clamped_disk(strain=0.0, pressure=None):
+    from femshell.mesh.generators import disk
+    from femshell.shell import Clamped, DeadPressure, Material, ShellModel, uniform_growth
+
+    m = disk(radius=5.0, edge_length=1.0)
+    loads = [DeadPressure(m, pressure)] if pressure is not None else []
+    return ShellModel(m, Material(E=1.0, nu=0.3), uniform_growth(m.points, m.triangles, 0.2, strain),
+                      [Clamped("outer")], loads)
+
+
+def test_flat_plate_grown_past_buckling_is_left_for_a_stable_buckled_state():
+    """The flat state is an equilibrium to round-off (uniform growth, clamped edge) but, at twice the
+    critical growth strain g_c = 14.682 t^2 / (12 (1 + nu) a^2) (plate theory), a saddle: with
+    stable=True Newton must leave it, not stop at the round-off floor and call it converged."""
+    g_c = 14.682 * 0.2**2 / (12 * 1.3 * 5.0**2)
+    model = _clamped_disk(2 * g_c)
+    u0 = model.initial_unknowns()
+    assert np.linalg.norm(model.gradient(u0)) < 1e-12          # the flat start is an equilibrium
+    r = minimize(model, u0, stable=True, log=None)
+    assert r.converged and r.stable and r.n_negative == 0
+    assert r.energy < model.energy(u0) * (1 - 1e-3)              # buckled: below the flat state
+    assert np.abs(model.positions(r.u)[:, 2]).max() > 0.05     # out of plane
+
+
+def test_load_stepping_from_a_load_factor_of_zero():
+    """At load factor 0 the unloaded start is the equilibrium (its residual is round-off): converged at
+    once, and follow_load over factors starting at 0 returns (it used to halve a step of 0 forever)."""
+    model = _clamped_disk(pressure=1e-6)
+    u0 = model.initial_unknowns()
+    model.load_factor = 0.0
+    assert minimize(model, u0, log=None).iterations == 0
+    out = follow_load(model, u0, [0.0, 0.5, 1.0], log=None)
+    assert [r.converged for r in out] == [True, True, True]
+    for bad in ([np.nan], [0.5, np.inf]):
+        with pytest.raises(ValueError, match="must be finite"):
+            follow_load(model, u0, bad, log=None)
+    with pytest.raises(ValueError, match=f"u0 must be a vector of the problem's {model.n_free} free unknowns"):
+        minimize(model, u0[:-1], log=None)
+    with pytest.raises(ValueError, match="max_iter must be >= 0"):
+        minimize(model, u0, max_iter=-1, log=None)

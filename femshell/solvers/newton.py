@@ -15,9 +15,9 @@ The solver knows a *problem*: any object with ``energy(u)``, ``gradient(u)`` and
 4. converged when :math:`\|\nabla\Pi\| \le` ``rtol`` × scale + ``atol``, or when the
    Newton step's predicted decrease of Π falls below float64 resolution of Π (the
    residual's round-off floor: nothing can be gained by iterating);
-5. with ``stable=True`` a converged point whose Hessian has negative eigenvalues is
-   a saddle: step along the eigenvector of the most negative eigenvalue (the sign
-   that lowers Π) and continue, so the result is a local minimum.
+5. with ``stable=True`` a converged point (or one at the round-off floor) whose Hessian
+   has negative eigenvalues is a saddle: step along the eigenvector of the most negative
+   eigenvalue (the sign that lowers Π) and continue, so the result is a local minimum.
 
 In a sequence of solves (time or load stepping) the caller can keep the factorisations
 (``factorizers``) and start each solve with quasi-Newton iterations on the last one
@@ -112,6 +112,12 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         cut its step (a time stepping) gains from stopping early; None: never.
     """
     u = np.array(u0, dtype=float)
+    n_free = getattr(problem, "n_free", None)
+    if u.ndim != 1 or (n_free is not None and len(u) != n_free):
+        raise ValueError(f"u0 must be a vector of the problem's {n_free if n_free is not None else ''} free unknowns, "
+                         f"got shape {u.shape}")
+    if int(max_iter) < 0:
+        raise ValueError(f"max_iter must be >= 0, got {max_iter}")
     times = {"assembly": 0.0, "factorize": 0.0, "solve": 0.0, "line_search": 0.0}
     t0 = time.perf_counter()
     e = problem.energy(u)
@@ -119,12 +125,15 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     times["assembly"] += time.perf_counter() - t0
     if not (np.isfinite(e) and np.all(np.isfinite(g))):
         raise NewtonError("energy or gradient is not finite at the starting point")
+    scale_from_start = False
     if residual_scale is None:
-        # the applied load sets the scale; without one (growth), the initial imbalance does
-        if hasattr(problem, "load_gradient") and getattr(problem, "loads", None) and problem.load_factor:
-            residual_scale = abs(problem.load_factor) * np.linalg.norm(problem.load_gradient(u))
+        # the applied load sets the scale (at load factor 0, the unit load: the start may already be
+        # the equilibrium, to round-off); without loads (growth), the initial imbalance does
+        if hasattr(problem, "load_gradient") and getattr(problem, "loads", None):
+            residual_scale = (abs(problem.load_factor) or 1.0) * np.linalg.norm(problem.load_gradient(u))
         else:
             residual_scale = np.linalg.norm(g)
+            scale_from_start = True
     residual_scale = max(residual_scale, 1e-300)
     own = factorizers is None
     if own:
@@ -140,7 +149,7 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
             if log:
                 log(f"    quasi-Newton on the held factorisation: {qn_iterations} iterations, |r| {np.linalg.norm(g):.3e}")
         out = _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step,
-                        factorizers, log, stall)
+                        factorizers, log, stall, scale_from_start)
         out.quasi_newton_iterations = qn_iterations
         return out
     finally:
@@ -159,7 +168,7 @@ def _stalled(history, window) -> bool:
 
 
 def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step, factorizers, log,
-              stall=None):
+              stall=None, scale_from_start=False):
     hessian_factors, shifted_factors = factorizers
     history = []
     n_neg = None
@@ -188,13 +197,12 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                 if lam[0] >= 0:
                     n_neg = 0
                     break
-            if escapes >= 20:
-                raise NewtonError("could not leave the saddle after 20 escapes", _result(
-                    u, False, it, e, res, residual_scale, n_neg, history, times))
-            escapes += 1
+            escapes = _count_escape(escapes, u, it, e, res, residual_scale, n_neg, history, times)
             t = time.perf_counter()
             u, e, g = _escape_saddle(problem, u, e, K, log)
             times["line_search"] += time.perf_counter() - t
+            if scale_from_start:    # a start at an exact equilibrium (a saddle) had an imbalance of round-off
+                residual_scale = max(residual_scale, float(np.linalg.norm(g)))
             continue
         if it == max_iter:
             break
@@ -221,6 +229,16 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
             # no step lowers Π when the predicted decrease is below what float64 can resolve
             # in Π: the residual has reached its round-off floor, which is as converged as it gets
             if abs(g @ d) <= 1e-13 * max(abs(e), abs(e_start), 1e-300):
+                if stable and n_neg:
+                    # a saddle at the round-off floor (an equilibrium by symmetry, as a flat plate
+                    # grown past buckling): leave it as a converged saddle is left
+                    escapes = _count_escape(escapes, u, it, e, res, residual_scale, n_neg, history, times)
+                    t = time.perf_counter()
+                    u, e, g = _escape_saddle(problem, u, e, K, log)
+                    times["line_search"] += time.perf_counter() - t
+                    if scale_from_start:
+                        residual_scale = max(residual_scale, float(np.linalg.norm(g)))
+                    continue
                 roundoff_floor = True
                 if log:
                     log(f"    newton: stopped at the round-off floor, |r| = {res:.3e}")
@@ -233,6 +251,13 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
         raise NewtonError(f"Newton did not converge in {max_iter} iterations: |r| = {res:.3e} > "
                           f"{rtol * residual_scale + atol:.3e}", out)
     return out
+
+
+def _count_escape(escapes, u, it, e, res, scale, n_neg, history, times, limit=20):
+    if escapes >= limit:
+        raise NewtonError(f"could not leave the saddle after {limit} escapes", _result(
+            u, False, it, e, res, scale, n_neg, history, times))
+    return escapes + 1
 
 
 def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, memory=8, stall=4):
@@ -393,6 +418,9 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
     """
     u = np.array(u0, float)
     current = float(start)
+    factors = [float(f) for f in factors]
+    if not all(np.isfinite(factors + [current])):
+        raise ValueError(f"load factors and start must be finite, got start {start} and factors {factors}")
     last = None  # the last converged NewtonResult, handed back with a failure
     previous = None  # (load factor, state) of the converged step before, for the secant predictor
     out = []
@@ -413,7 +441,7 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
             try:
                 res = minimize(problem, start, log=None, **newton_options)
             except NewtonError as exc:
-                if abs(step) * 0.5 < min_step:
+                if abs(step) * 0.5 <= min_step:    # (<=: a step of 0, to a factor equal to the start, ends too)
                     problem.load_factor = current
                     if last is None:  # nothing converged yet: describe u0 as it is
                         g = problem.gradient(u)
