@@ -144,7 +144,8 @@ def _cmd_mesh(args):
         if args.angle:
             a0, a1 = args.angle
             if not (math.isfinite(a0) and math.isfinite(a1) and 0 < a1 - a0 < 360):
-                raise ValueError(f"--angle THETA0 THETA1 must have 0 < THETA1 - THETA0 < 360 degrees, got {a0:g} {a1:g}")
+                raise ValueError("--angle THETA0 THETA1 must have 0 < THETA1 - THETA0 < 360 degrees, "
+                                 f"got {a0:g} {a1:g}")
             kw["angle_range"] = (math.radians(a0), math.radians(a1))
     t0 = time.perf_counter()
     mesh = getattr(g, args.kind)(**{k: v for k, v in kw.items() if v is not None})

@@ -203,6 +203,9 @@ def target_thickness(h0, s, mode: str = "volume"):
         raise ValueError(f"rest thickness h0 must be finite and > 0, got min {np.min(h0)}")
     s = np.asarray(s, dtype=float)
     s = _check_stretch(s, s.shape[0] if s.ndim else None)
+    if h0.ndim and s.ndim and h0.shape != s.shape:
+        raise ValueError(f"h0 and s must be numbers or arrays of one value per element of the same shape, "
+                         f"got {h0.shape} and {s.shape}")
     if mode == "volume":
         return h0 / (s * s)
     return np.broadcast_to(h0, np.broadcast_shapes(h0.shape, s.shape)).astype(float)

@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .boundary import _curve_edges
 from .element import mid_edge_normals
 
 
@@ -88,7 +89,7 @@ def DeadPressure(mesh, pressure) -> DeadLoad:
 
 def EdgeForce(mesh, curve, force_per_length) -> DeadLoad:
     """Force per unit rest length on a boundary curve, half of each edge to its two vertices."""
-    edges = mesh.topology.edges[mesh.topology.boundary_edge_groups[curve]]
+    edges = mesh.topology.edges[_curve_edges(mesh, curve)]
     length = np.linalg.norm(mesh.points[edges[:, 1]] - mesh.points[edges[:, 0]], axis=1)
     f = np.zeros((mesh.n_vertices, 3))
     g = np.outer(length / 2.0, np.asarray(force_per_length, float))
@@ -156,7 +157,7 @@ class EdgeMoment:
 
     def setup(self, model):
         t = model.mesh.topology
-        e = t.boundary_edge_groups[self.curve]
+        e = _curve_edges(model.mesh, self.curve)
         self._faces = t.edge_faces[e, 0]
         self._local = t.edge_local[e, 0]
         x = model.mesh.points

@@ -222,6 +222,8 @@ class ShellModel:
     # ---- rest state -------------------------------------------------------------------------
     def set_rest_state(self, rest: RestState):
         """Replace the targets (growth changes them every step); the pattern stays cached."""
+        if len(rest.metric) != self.mesh.n_triangles:
+            raise ValueError(f"rest state has {len(rest.metric)} elements, mesh has {self.mesh.n_triangles} triangles")
         self.rest = rest
         self._abar_inv = rest.metric_inverse
         self._bbar = rest.curvature

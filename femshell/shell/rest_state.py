@@ -34,7 +34,11 @@ class RestState:
     def __post_init__(self):
         self.metric = np.asarray(self.metric, float)
         self.curvature = np.asarray(self.curvature, float)
-        self.thickness = np.broadcast_to(np.asarray(self.thickness, float), (len(self.metric),)).copy()
+        h = np.asarray(self.thickness, float)
+        if h.ndim > 1 or h.size not in (1, len(self.metric)):
+            raise ValueError(f"thickness must be a number or one value per element (shape ({len(self.metric)},)), "
+                             f"got shape {h.shape}")
+        self.thickness = np.broadcast_to(h.reshape(-1)[0] if h.size == 1 else h, (len(self.metric),)).copy()
         m = len(self.metric)
         if self.metric.shape != (m, 2, 2) or self.curvature.shape != (m, 2, 2):
             raise ValueError(f"target metric and curvature must have shape (m, 2, 2) with m = {m}, "
