@@ -36,3 +36,27 @@ def test_rest_state_of_another_mesh(small_disk):
     model = ShellModel(m, Material(), flat_rest_state(m.points, m.triangles, 0.01), [Clamped("outer")])
     with pytest.raises(ValueError, match=f"rest state has {m.n_triangles - 1} elements, mesh has {m.n_triangles}"):
         model.set_rest_state(flat_rest_state(m.points, m.triangles[:-1], 0.01))
+
+
+def test_continuation_and_newton_arguments(small_disk):
+    from femshell.shell import DeadPressure
+    from femshell.solvers.continuation import LoadParameter, continuation
+    from femshell.solvers.newton import NewtonError, minimize
+
+    m = small_disk
+    rest = flat_rest_state(m.points, m.triangles, 0.01)
+    model = ShellModel(m, Material(), rest, [Clamped("outer")], [DeadPressure(m, 1e-6)])
+    u0 = model.initial_unknowns()
+    problem = LoadParameter(model)
+    for kw, words in ((dict(parameter_scale=0.0), "parameter_scale must be a finite number > 0, got 0.0"),
+                      (dict(lam_stop=np.nan), "lam_stop must be a finite number"),
+                      (dict(ds=np.inf), "ds_max < inf"),
+                      (dict(weights=np.ones(len(u0) - 1)), f"one per unknown \\(shape \\({len(u0)},\\)\\)")):
+        with pytest.raises(ValueError, match=words):
+            continuation(problem, u0, 0.0, **({"ds": 0.1} | kw), log=None, max_steps=2)
+    with pytest.raises(ValueError, match=f"u0 must be a vector of the problem's {len(u0)} free unknowns"):
+        continuation(problem, u0[:-1], 0.0, ds=0.1, log=None)
+    # a load that overflows: named, not "converged in 0 iterations, |r| = inf"
+    huge = ShellModel(m, Material(), rest, [Clamped("outer")], [DeadPressure(m, 1e300)])
+    with pytest.raises(NewtonError, match="the residual scale is not finite"):
+        minimize(huge, u0, log=None)

@@ -177,6 +177,10 @@ class _ModelAdapter:
     def accept(self, u):
         self.model.accept(u)
 
+    @property
+    def n_free(self):
+        return self.model.n_free
+
     # minimize() asks these of a problem to scale its residual
     @property
     def loads(self):
@@ -766,18 +770,29 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     t_start = time.perf_counter()
     u0 = np.asarray(u0, float)
     n = len(u0)
+    n_free = getattr(problem, "n_free", None)
+    if u0.ndim != 1 or (n_free is not None and n != n_free):
+        raise ValueError(f"u0 must be a vector of the problem's {n_free if n_free is not None else ''} free "
+                         f"unknowns, got shape {u0.shape}")
     if weights is None:
         weights = problem.dof_weights() if hasattr(problem, "dof_weights") else np.ones(n)
-    weights = np.broadcast_to(np.asarray(weights, float), (n,)).copy()
+    weights = np.asarray(weights, float)
+    if weights.ndim and weights.shape != (n,):
+        raise ValueError(f"weights must be a number or one per unknown (shape ({n},)), got shape {weights.shape}")
+    weights = np.broadcast_to(weights, (n,)).copy()
     if np.any(weights < 0) or not np.all(np.isfinite(weights)):
         raise ValueError("weights must be finite and >= 0")
     if parameter_scale is None:
         parameter_scale = getattr(problem, "parameter_scale", 1.0)
+    if not (np.isfinite(parameter_scale) and parameter_scale > 0):
+        raise ValueError(f"parameter_scale must be a finite number > 0, got {parameter_scale}")
+    if lam_stop is not None and not np.isfinite(lam_stop):
+        raise ValueError(f"lam_stop must be a finite number (or None), got {lam_stop}")
     ds = float(ds)
     ds_min = ds / 1000.0 if ds_min is None else float(ds_min)
     ds_max = 10.0 * ds if ds_max is None else float(ds_max)
-    if not (0 < ds_min <= ds <= ds_max):
-        raise ValueError(f"need 0 < ds_min <= ds <= ds_max, got {ds_min}, {ds}, {ds_max}")
+    if not (0 < ds_min <= ds <= ds_max < math.inf):
+        raise ValueError(f"need 0 < ds_min <= ds <= ds_max < inf, got {ds_min}, {ds}, {ds_max}")
     if direction not in (1, -1):
         raise ValueError(f"direction must be +1 or -1, got {direction}")
     bad = set(stop_at) - {"fold", "branch"}

@@ -130,10 +130,13 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         # the applied load sets the scale (at load factor 0, the unit load: the start may already be
         # the equilibrium, to round-off); without loads (growth), the initial imbalance does
         if hasattr(problem, "load_gradient") and getattr(problem, "loads", None):
-            residual_scale = (abs(problem.load_factor) or 1.0) * np.linalg.norm(problem.load_gradient(u))
+            with np.errstate(over="ignore"):     # an overflowing load is named below
+                residual_scale = (abs(problem.load_factor) or 1.0) * np.linalg.norm(problem.load_gradient(u))
         else:
             residual_scale = np.linalg.norm(g)
             scale_from_start = True
+    if not np.isfinite(residual_scale):
+        raise NewtonError(f"the residual scale is not finite ({residual_scale}): the applied load overflows float64")
     residual_scale = max(residual_scale, 1e-300)
     own = factorizers is None
     if own:
