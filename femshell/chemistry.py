@@ -349,7 +349,11 @@ class ReactionDiffusion:
         c = np.asarray(c, dtype=float)
         if c.shape != (self.n_vertices,):
             raise ValueError(f"c must have shape ({self.n_vertices},), got {c.shape}")
-        P = np.broadcast_to(np.asarray(source, dtype=float), c.shape)
+        P = np.asarray(source, dtype=float)
+        if P.ndim and P.shape != c.shape:
+            raise ValueError(f"source must be a number or one value per vertex, shape ({self.n_vertices},), "
+                             f"got shape {P.shape}")
+        P = np.broadcast_to(P, c.shape)
         if not (np.all(np.isfinite(c)) and np.all(np.isfinite(P))):
             raise ValueError("c and source must be finite")
         if points is not None:

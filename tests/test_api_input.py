@@ -60,3 +60,34 @@ def test_continuation_and_newton_arguments(small_disk):
     huge = ShellModel(m, Material(), rest, [Clamped("outer")], [DeadPressure(m, 1e300)])
     with pytest.raises(NewtonError, match="the residual scale is not finite"):
         minimize(huge, u0, log=None)
+
+
+def test_point_force_and_material_arguments(small_disk):
+    from femshell.shell import PointForce
+
+    m = small_disk
+    with pytest.raises(ValueError, match=rf"vertices must be indices in \[0, {m.n_vertices - 1}\]"):
+        PointForce(m, [m.n_vertices + 1], (0.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="vertices must be indices"):
+        PointForce(m, [-1], (0.0, 0.0, 1.0))            # numpy would wrap it to the last vertex
+    with pytest.raises(ValueError, match="force must be 3 finite numbers"):
+        PointForce(m, [0], (0.0, 1.0))
+    for bad in ("1", None):
+        with pytest.raises(ValueError, match="E must be a number"):
+            Material(E=bad)
+
+
+def test_mesh_and_chemistry_shapes(small_disk):
+    from femshell.chemistry import ReactionDiffusion
+    from femshell.mesh.surface import SurfaceMesh
+
+    m = small_disk
+    quads = np.array([[0, 1, 2, 3]])
+    with pytest.raises(ValueError, match=r"triangles must have shape \(m, 3\), got \(1, 4\)"):
+        SurfaceMesh(m.points, quads)
+    with pytest.raises(ValueError, match=r"triangles must have shape \(m, 3\), got \(3, 2\)"):
+        SurfaceMesh(m.points, np.array([[0, 1], [1, 2], [2, 0]]))     # was reshaped into triangles
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.1, beta=1.0, points=m.points)
+    with pytest.raises(ValueError, match=rf"one value per vertex, shape \({m.n_vertices},\), got shape "
+                                         rf"\({m.n_triangles},\)"):
+        rd.step(np.zeros(m.n_vertices), 0.1, source=np.ones(m.n_triangles))

@@ -53,7 +53,9 @@ class SurfaceMesh:
         tri = np.array(self.triangles)
         if tri.size and not np.issubdtype(tri.dtype, np.integer):
             raise ValueError(f"triangles must be integer vertex indices, got dtype {tri.dtype}")
-        tri = tri.astype(np.int64).reshape(-1, 3) if tri.size else np.zeros((0, 3), np.int64)
+        if tri.size and (tri.ndim != 2 or tri.shape[1] != 3):
+            raise ValueError(f"triangles must have shape (m, 3), got {tri.shape}")
+        tri = tri.astype(np.int64) if tri.size else np.zeros((0, 3), np.int64)
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
         bnd = {str(k): np.asarray(v, dtype=np.int64).reshape(-1, 2) for k, v in self.boundary.items()}

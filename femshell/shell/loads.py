@@ -68,8 +68,15 @@ class DeadLoad:
 
 def PointForce(mesh, vertices, force) -> DeadLoad:
     """The same force (3,) on each listed vertex."""
+    v = np.atleast_1d(np.asarray(vertices))
+    v = v.astype(np.int64) if v.size == 0 else v
+    force = np.asarray(force, float)
+    if v.dtype.kind not in "iu" or v.ndim != 1 or np.any((v < 0) | (v >= mesh.n_vertices)):
+        raise ValueError(f"vertices must be indices in [0, {mesh.n_vertices - 1}], got {vertices!r}")
+    if force.shape != (3,) or not np.all(np.isfinite(force)):
+        raise ValueError(f"force must be 3 finite numbers, got {force.tolist()!r}")
     f = np.zeros((mesh.n_vertices, 3))
-    f[np.atleast_1d(vertices)] += np.asarray(force, float)
+    f[v] += force
     return DeadLoad(f)
 
 

@@ -45,6 +45,10 @@ class Material:
     law: str = "svk"
 
     def __post_init__(self):
+        for name in ("E", "nu"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ValueError(f"{name} must be a number, got {v!r}")
         if not (np.isfinite(self.E) and self.E > 0):
             raise ValueError(f"Young's modulus E must be > 0, got {self.E}")
         if not (-1.0 < self.nu <= 0.5):
