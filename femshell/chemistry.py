@@ -356,6 +356,9 @@ class ReactionDiffusion:
         P = np.broadcast_to(P, c.shape)
         if not (np.all(np.isfinite(c)) and np.all(np.isfinite(P))):
             raise ValueError("c and source must be finite")
+        if self.nonnegative and c.min() < 0:
+            # the clip keeps every step's output >= 0; a negative input is the caller's, not the mesh's
+            raise ValueError(f"c must be >= 0 (nonnegative=True), got min {c.min():.3g} at vertex {int(c.argmin())}")
         if points is not None:
             self.set_geometry(points)
         t0 = time.perf_counter()

@@ -34,7 +34,9 @@ __all__ = ["contractility", "stretch", "dstretch_dc", "element_average", "target
 THICKNESS_MODES = ("volume", "uniform")
 
 
-def _check_params(lam_max, lam_min, b):
+def _check_params(lam_max, lam_min, b, c_star):
+    if not np.isfinite(c_star):
+        raise ValueError(f"c_star (c*, the threshold concentration) must be a finite number, got {c_star}")
     if not (np.isfinite(lam_min) and lam_min > 0):
         raise ValueError(f"lam_min (Λmin) must be a finite number > 0, got {lam_min}")
     if not (np.isfinite(lam_max) and lam_max >= lam_min):
@@ -79,7 +81,7 @@ def contractility(c, lam_max: float = 15.0, lam_min: float = 10.0, b: float = 10
     >>> float(contractility(0.1))    # at the threshold, halfway
     12.5
     """
-    _check_params(lam_max, lam_min, b)
+    _check_params(lam_max, lam_min, b, c_star)
     c = _as_finite(c)
     return lam_min + (lam_max - lam_min) * expit(b * (c_star - c))
 

@@ -91,3 +91,18 @@ def test_mesh_and_chemistry_shapes(small_disk):
     with pytest.raises(ValueError, match=rf"one value per vertex, shape \({m.n_vertices},\), got shape "
                                          rf"\({m.n_triangles},\)"):
         rd.step(np.zeros(m.n_vertices), 0.1, source=np.ones(m.n_triangles))
+
+
+def test_chemistry_and_growth_values(small_disk):
+    from femshell.chemistry import ReactionDiffusion
+    from femshell.growth import contractility, stretch
+
+    m = small_disk
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.1, beta=1.0, points=m.points)
+    c = np.zeros(m.n_vertices)
+    c[3] = -1.0
+    with pytest.raises(ValueError, match="c must be >= 0 .* got min -1 at vertex 3"):
+        rd.step(c, 0.1)
+    for f in (contractility, stretch):
+        with pytest.raises(ValueError, match="c_star .* must be a finite number, got nan"):
+            f(np.zeros(3), c_star=np.nan)
