@@ -106,3 +106,17 @@ def test_chemistry_and_growth_values(small_disk):
     for f in (contractility, stretch):
         with pytest.raises(ValueError, match="c_star .* must be a finite number, got nan"):
             f(np.zeros(3), c_star=np.nan)
+
+
+def test_model_and_newton_argument_types(small_disk):
+    from femshell.solvers.newton import minimize
+
+    m = small_disk
+    rest = flat_rest_state(m.points, m.triangles, 0.01)
+    with pytest.raises(TypeError, match="material must be a Material, got NoneType"):
+        ShellModel(m, None, rest, [Clamped("outer")])
+    with pytest.raises(TypeError, match="rest must be a RestState, got float"):
+        ShellModel(m, Material(), 0.01, [Clamped("outer")])
+    model = ShellModel(m, Material(), rest, [Clamped("outer")])
+    with pytest.raises(ValueError, match="max_step must be > 0"):
+        minimize(model, model.initial_unknowns(), max_step=0.0, log=None)

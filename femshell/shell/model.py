@@ -174,6 +174,9 @@ class ShellModel:
 
     def __init__(self, mesh, material: Material, rest: RestState, boundary_conditions=(), loads=(),
                  remove_rigid_modes=None):
+        for name, value, kind in (("material", material, Material), ("rest", rest, RestState)):
+            if not isinstance(value, kind):
+                raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
         self.mesh = mesh
         self.material = material
         self.topology = t = mesh.topology

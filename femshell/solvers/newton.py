@@ -118,6 +118,8 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
                          f"got shape {u.shape}")
     if int(max_iter) < 0:
         raise ValueError(f"max_iter must be >= 0, got {max_iter}")
+    if max_step is not None and not (max_step > 0):
+        raise ValueError(f"max_step must be > 0 (or None), got {max_step}")
     times = {"assembly": 0.0, "factorize": 0.0, "solve": 0.0, "line_search": 0.0}
     t0 = time.perf_counter()
     e = problem.energy(u)
