@@ -366,6 +366,15 @@ def gaussian_spot(points, amplitude: float, width: float, *, pole=(0.0, 0.0, 1.0
     return amplitude * np.exp(-r2 / (width**2 if width < 1e150 else math.inf))
 
 
+def _rejected(res) -> str | None:
+    """Why an equilibrium from Newton cannot be accepted (non-finite, or a saddle), or None."""
+    if not (np.all(np.isfinite(res.u)) and math.isfinite(res.energy)):
+        return "Newton returned a non-finite state"
+    if res.stable is False:     # minimize reports a saddle it could not leave; never accept one
+        return f"the equilibrium is a saddle ({res.n_negative} negative eigenvalues)"
+    return None
+
+
 @dataclass(frozen=True)
 class InitialSpot:
     """The initial condition of design.md 1.4: c = 0 except a Gaussian spot at a pole.
@@ -822,9 +831,7 @@ class CoupledLoop:
             start = u if u_prev is None else self._predict(u, u_prev, (trial - lam) / (lam - lam_prev))
             try:
                 res = self._newton(start)
-                finite = np.all(np.isfinite(res.u)) and math.isfinite(res.energy)
-                why = ("Newton returned a non-finite state" if not finite else
-                       f"a saddle, {res.n_negative} negative eigenvalues" if res.stable is False else None)
+                why = _rejected(res)
             except NewtonError as exc:
                 why = exc
             if why is not None:
@@ -951,10 +958,9 @@ class CoupledLoop:
                     snapped = res is not None
                     if not snapped:
                         ok, reason = False, f"Newton failed: {exc}"
-                if ok and not (np.all(np.isfinite(res.u)) and math.isfinite(res.energy)):
-                    ok, reason = False, "Newton returned a non-finite state"
-                if ok and res.stable is False:      # never accept a saddle (minimize's round-off exit)
-                    ok, reason = False, f"the equilibrium is a saddle ({res.n_negative} negative eigenvalues)"
+                why = _rejected(res) if ok else None
+                if why:
+                    ok, reason = False, why
                 if not ok:
                     self.growth.apply(self.s)           # back to the accepted rest state
             if ok:

@@ -125,7 +125,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .linear import LinearSolverError, factorize
-from .newton import NewtonError, minimize
+from .newton import NewtonError, check_unknowns, minimize
 
 __all__ = ["continuation", "switch_branch", "Branch", "SpecialPoint", "LoadParameter", "GrowthParameter",
            "ContinuationError"]
@@ -768,12 +768,8 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     Branch
     """
     t_start = time.perf_counter()
-    u0 = np.asarray(u0, float)
+    u0 = check_unknowns(problem, u0)
     n = len(u0)
-    n_free = getattr(problem, "n_free", None)
-    if u0.ndim != 1 or (n_free is not None and n != n_free):
-        raise ValueError(f"u0 must be a vector of the problem's {n_free if n_free is not None else ''} free "
-                         f"unknowns, got shape {u0.shape}")
     if weights is None:
         weights = problem.dof_weights() if hasattr(problem, "dof_weights") else np.ones(n)
     weights = np.asarray(weights, float)

@@ -111,11 +111,7 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         ~1e-9 of itself per iteration, residual 0.1–1.6 against a tolerance of 1e-7). A caller that can
         cut its step (a time stepping) gains from stopping early; None: never.
     """
-    u = np.array(u0, dtype=float)
-    n_free = getattr(problem, "n_free", None)
-    if u.ndim != 1 or (n_free is not None and len(u) != n_free):
-        raise ValueError(f"u0 must be a vector of the problem's {n_free if n_free is not None else ''} free unknowns, "
-                         f"got shape {u.shape}")
+    u = check_unknowns(problem, u0)
     if int(max_iter) < 0:
         raise ValueError(f"max_iter must be >= 0, got {max_iter}")
     if max_step is not None and not (max_step > 0):
@@ -163,6 +159,17 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
                 f.free()
 
 
+def check_unknowns(problem, u0) -> np.ndarray:
+    """``u0`` as a float vector (a copy), or a ValueError when it is not one of the problem's
+    ``n_free`` unknowns (where the problem says how many)."""
+    u = np.array(u0, dtype=float)
+    n_free = getattr(problem, "n_free", None)
+    if u.ndim != 1 or (n_free is not None and len(u) != n_free):
+        raise ValueError(f"u0 must be a vector of the problem's {n_free if n_free is not None else ''} free unknowns, "
+                         f"got shape {u.shape}")
+    return u
+
+
 def _stalled(history, window) -> bool:
     """Over the last ``window`` iterations the residual has not halved and the energy hardly fell."""
     if not window or len(history) <= window:
@@ -180,6 +187,19 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
     res = np.linalg.norm(g)
     escapes = 0
     e_start = e
+
+    def leave_saddle(it, res):
+        """Step off the saddle at u along its most negative mode (at most 20 times per solve)."""
+        nonlocal u, e, g, escapes, residual_scale
+        if escapes >= 20:
+            raise NewtonError("could not leave the saddle after 20 escapes", _result(
+                u, False, it, e, res, residual_scale, n_neg, history, times))
+        escapes += 1
+        t = time.perf_counter()
+        u, e, g = _escape_saddle(problem, u, e, K, log)
+        times["line_search"] += time.perf_counter() - t
+        if scale_from_start:    # a start at an exact equilibrium (a saddle) had an imbalance of round-off
+            residual_scale = max(residual_scale, float(np.linalg.norm(g)))
     roundoff_floor = False
     tau = None
     for it in range(max_iter + 1):
@@ -202,12 +222,7 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                 if lam[0] >= 0:
                     n_neg = 0
                     break
-            escapes = _count_escape(escapes, u, it, e, res, residual_scale, n_neg, history, times)
-            t = time.perf_counter()
-            u, e, g = _escape_saddle(problem, u, e, K, log)
-            times["line_search"] += time.perf_counter() - t
-            if scale_from_start:    # a start at an exact equilibrium (a saddle) had an imbalance of round-off
-                residual_scale = max(residual_scale, float(np.linalg.norm(g)))
+            leave_saddle(it, res)
             continue
         if it == max_iter:
             break
@@ -237,12 +252,7 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                 if stable and n_neg:
                     # a saddle at the round-off floor (an equilibrium by symmetry, as a flat plate
                     # grown past buckling): leave it as a converged saddle is left
-                    escapes = _count_escape(escapes, u, it, e, res, residual_scale, n_neg, history, times)
-                    t = time.perf_counter()
-                    u, e, g = _escape_saddle(problem, u, e, K, log)
-                    times["line_search"] += time.perf_counter() - t
-                    if scale_from_start:
-                        residual_scale = max(residual_scale, float(np.linalg.norm(g)))
+                    leave_saddle(it, res)
                     continue
                 roundoff_floor = True
                 if log:
@@ -256,13 +266,6 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
         raise NewtonError(f"Newton did not converge in {max_iter} iterations: |r| = {res:.3e} > "
                           f"{rtol * residual_scale + atol:.3e}", out)
     return out
-
-
-def _count_escape(escapes, u, it, e, res, scale, n_neg, history, times, limit=20):
-    if escapes >= limit:
-        raise NewtonError(f"could not leave the saddle after {limit} escapes", _result(
-            u, False, it, e, res, scale, n_neg, history, times))
-    return escapes + 1
 
 
 def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, memory=8, stall=4):
