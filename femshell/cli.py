@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 MESH_KINDS = ("sphere", "disk", "plate", "strip", "annulus", "cylinder", "hemisphere")
 
@@ -38,6 +39,7 @@ def _parser():
                        description="Generate a mesh and write it; prints its size, topology and quality.")
     m.add_argument("kind", choices=MESH_KINDS)
     m.add_argument("-o", "--output", required=True, help="output file (.vtu, .msh or .xdmf)")
+    m.add_argument("--overwrite", action="store_true", help="replace the output file if it exists")
     m.add_argument("--radius", type=_positive("--radius"), help="sphere/disk/cylinder/hemisphere radius")
     m.add_argument("--inner-radius", type=_positive("--inner-radius"),
                    help="disk: conforming inner circle radius R2; annulus: inner radius")
@@ -114,6 +116,11 @@ def _cmd_mesh(args):
 
     from .mesh import check_mesh, format_quality, generators, quality_report, write_mesh
 
+    out = Path(args.output)
+    existing = [f for f in (out, out.with_suffix(".h5") if out.suffix == ".xdmf" else None)
+                if f is not None and f.exists()]
+    if existing and not args.overwrite:   # checked before meshing: no output lost, no time wasted
+        raise ValueError(f"{', '.join(map(str, existing))} exists; pass --overwrite to replace it")
     g = generators
     kw = {"seed": args.seed}
     if args.kind in ("sphere", "hemisphere"):

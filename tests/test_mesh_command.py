@@ -56,6 +56,17 @@ def test_mesh_command_bad_input(tmp_path, args, words):
     assert "Traceback" not in r.stderr
 
 
+def test_existing_output_is_kept_unless_overwrite(tmp_path):
+    out = tmp_path / "s.vtu"
+    out.write_text("someone's file")
+    r = _run("mesh", "sphere", "--vertices", "100", "-o", str(out))
+    assert r.returncode == 2 and "exists; pass --overwrite" in r.stderr
+    assert out.read_text() == "someone's file"
+    r = _run("mesh", "sphere", "--vertices", "100", "-o", str(out), "--overwrite")
+    assert r.returncode == 0, r.stderr
+    assert read_mesh(out).topology.is_closed
+
+
 def test_help_lists_every_subcommand():
     r = _run("--help")
     for sub in ("mesh", "validate", "run", "scenes"):
