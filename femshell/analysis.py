@@ -478,6 +478,11 @@ def _circle_samples(points, values, radius, center, n_samples, triangles):
     if pts.ndim != 2 or pts.shape[1] not in (2, 3):
         raise ValueError(f"points must have shape (n, 2) or (n, 3), got {pts.shape}")
     v = _field(values, len(pts), "values")
+    if pts.shape[1] == 3:   # a circle in the xy plane: a curved mesh would be silently projected onto it
+        extent = max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1]))
+        if np.ptp(pts[:, 2]) > 1e-9 * extent:
+            raise ValueError(f"points must be a flat mesh in the xy plane (the reference positions), got z from "
+                             f"{pts[:, 2].min():.6g} to {pts[:, 2].max():.6g}")
     if not (math.isfinite(radius) and radius > 0):
         raise ValueError(f"radius must be > 0, got {radius}")
     ns = int(n_samples)

@@ -366,16 +366,27 @@ class ReactionDiffusion:
             decay = np.exp(-self.beta * dt)
             # (1 − e^{−β dt}) / β without cancellation for small β dt; dt when β = 0
             gain = -np.expm1(-self.beta * dt) / self.beta if self.beta > 0 else dt
-            out = c * decay + P * gain
+            with np.errstate(over="ignore"):   # an overflow is named below
+                out = c * decay + P * gain
         else:
             self._ensure_matrices()
             if self._factor is None or self._factor_dt != dt:
-                from .solvers.linear import factorize
+                from .solvers.linear import LinearSolverError, factorize
 
                 A = (sp.diags(self.mass * (1.0 + self.beta * dt)) + (dt * self.D) * self.stiffness).tocsr()
-                self._factor = factorize(A, kind="spd", backend=self.backend, reuse=self._factor)
+                try:
+                    self._factor = factorize(A, kind="spd", backend=self.backend, reuse=self._factor)
+                except LinearSolverError:
+                    # the mass term is lost to round-off next to dt·D·K, whose null space is the constants
+                    self._factor = None
+                    raise ValueError(f"the step dt = {dt:.6g} is too long for D = {self.D:g}, beta = {self.beta:g}: "
+                                     "M (1 + beta dt) + dt D K is singular in double precision; take a "
+                                     "smaller dt") from None
                 self._factor_dt = dt
             out = self._factor.solve(self.mass * (c + dt * P))
+        if not np.all(np.isfinite(out)):   # e.g. β = 0 and dt·P past the float range
+            raise ValueError(f"the step dt = {dt:.6g} overflows c (c + dt·P is past the float range): "
+                             "take a smaller dt")
         if self.nonnegative:
             out = self._clip(out)
         self.solve_time += time.perf_counter() - t0

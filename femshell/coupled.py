@@ -318,6 +318,16 @@ class GrowthCoupling:
 
 # ----------------------------------------------------------------------------- initial condition
 
+def _point3(name, value):
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        v = None
+    if v is None or v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be three finite numbers (x, y, z), got {value!r}")
+    return v
+
+
 def gaussian_spot(points, amplitude: float, width: float, *, pole=(0.0, 0.0, 1.0), center=None,
                   elongation: float = 1.0, direction=None, distance: str = "geodesic") -> np.ndarray:
     r"""c0 = amplitude · exp(−(r/width)²) about a pole (concentration at the vertices, (n,)).
@@ -342,9 +352,9 @@ def gaussian_spot(points, amplitude: float, width: float, *, pole=(0.0, 0.0, 1.0
     if p.shape != (3,) or not np.linalg.norm(p) > 0:
         raise ValueError(f"pole must be a non-zero 3-vector, got {pole!r}")
     p = p / np.linalg.norm(p)
-    ctr = pts.mean(axis=0) if center is None else np.asarray(center, dtype=float)
+    ctr = pts.mean(axis=0) if center is None else _point3("center", center)
     d = pts - ctr
-    dirv = np.array([1.0, 0.0, 0.0]) if direction is None else np.asarray(direction, dtype=float)
+    dirv = np.array([1.0, 0.0, 0.0]) if direction is None else _point3("direction", direction)
     e1 = dirv - (dirv @ p) * p
     if np.linalg.norm(e1) < 1e-8:
         e1 = np.array([0.0, 1.0, 0.0]) - p[1] * p
@@ -661,6 +671,10 @@ class CoupledLoop:
                  boundary_conditions=(), equilibrate: bool = True, log=None):
         if not isinstance(params, MechanochemicalModel):
             raise TypeError(f"params must be a MechanochemicalModel, got {type(params).__name__}")
+        if stepping is not None and not isinstance(stepping, TimeStepping):
+            raise TypeError(f"stepping must be a TimeStepping, got {type(stepping).__name__}")
+        if not all(hasattr(mesh, k) for k in ("points", "triangles", "topology")):
+            raise TypeError(f"mesh must be a SurfaceMesh (see femshell.mesh), got {type(mesh).__name__}")
         self.mesh = mesh
         self.params = params
         self.stepping = stepping or TimeStepping()

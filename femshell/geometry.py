@@ -80,13 +80,28 @@ def element_to_vertex(values: np.ndarray, points, triangles) -> np.ndarray:
     return num / np.maximum(den, 1e-300)
 
 
+def _metric_determinant(a, b):
+    """det(a) of first fundamental forms (m, 2, 2) that pair with b (m, 2, 2); a must be positive definite."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.ndim != 3 or a.shape[1:] != (2, 2) or b.shape != a.shape:
+        raise ValueError(f"fundamental forms a and b must both have shape (m, 2, 2), got {a.shape} and {b.shape}")
+    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
+    bad = ~(det > 0)
+    if bad.any():
+        raise ValueError(f"{bad.sum()} of {len(det)} first fundamental forms a are not positive definite "
+                         f"(det(a) <= 0 or not finite, first at element {np.flatnonzero(bad)[0]}): "
+                         "degenerate (collapsed) triangles")
+    return a, b, det
+
+
 def mean_curvature(a: np.ndarray, b: np.ndarray, k0: float = 0.0) -> np.ndarray:
     """H = ½ tr(a⁻¹ b) − k0 per element from the fundamental forms (m, 2, 2)."""
-    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
+    a, b, det = _metric_determinant(a, b)
     tr = (a[:, 1, 1] * b[:, 0, 0] - a[:, 0, 1] * b[:, 1, 0] - a[:, 1, 0] * b[:, 0, 1] + a[:, 0, 0] * b[:, 1, 1]) / det
     return 0.5 * tr - k0
 
 
 def gaussian_curvature(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """K = det(b) / det(a) per element."""
-    return np.linalg.det(b) / np.linalg.det(a)
+    a, b, det = _metric_determinant(a, b)
+    return (b[:, 0, 0] * b[:, 1, 1] - b[:, 0, 1] * b[:, 1, 0]) / det

@@ -157,3 +157,6 @@ def test_count_wrinkles_on_a_disk():
     assert amp[3] == pytest.approx(1.0, rel=0.02) and amp[0] < 1e-3
     with pytest.raises(ValueError, match="leaves the mesh"):
         count_wrinkles(m.points, r, 6.0, triangles=m.triangles)
+    ball = sphere(radius=5.0, n_vertices=200)     # a curved mesh is not projected onto the xy plane
+    with pytest.raises(ValueError, match="flat mesh in the xy plane .* got z from -5"):
+        count_wrinkles(ball.points, ball.points[:, 2], 4.0, triangles=ball.triangles)

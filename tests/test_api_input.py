@@ -120,3 +120,33 @@ def test_model_and_newton_argument_types(small_disk):
     model = ShellModel(m, Material(), rest, [Clamped("outer")])
     with pytest.raises(ValueError, match="max_step must be > 0"):
         minimize(model, model.initial_unknowns(), max_step=0.0, log=None)
+
+
+def test_curvature_spot_and_loop_arguments(small_disk):
+    from femshell.chemistry import ReactionDiffusion
+    from femshell.coupled import CoupledLoop, MechanochemicalModel, gaussian_spot
+    from femshell.geometry import gaussian_curvature, mean_curvature
+
+    m = small_disk
+    eye = np.broadcast_to(np.eye(2), (4, 2, 2))
+    with pytest.raises(ValueError, match=r"shape \(m, 2, 2\), got \(2, 2\) and \(2, 2\)"):
+        mean_curvature(np.eye(2), np.eye(2))
+    collapsed = eye.copy()
+    collapsed[2] = 0.0
+    for f in (mean_curvature, gaussian_curvature):
+        with pytest.raises(ValueError, match="1 of 4 first fundamental forms .* first at element 2"):
+            f(collapsed, eye)
+    with pytest.raises(ValueError, match=r"center must be three finite numbers \(x, y, z\), got \(0, 0\)"):
+        gaussian_spot(m.points, 1.0, 0.5, center=(0, 0))
+    with pytest.raises(TypeError, match="mesh must be a SurfaceMesh .* got NoneType"):
+        CoupledLoop(None, MechanochemicalModel())
+    with pytest.raises(TypeError, match="stepping must be a TimeStepping, got dict"):
+        CoupledLoop(m, MechanochemicalModel(), {"dt_max": 1.0})
+    # a step too long for double precision: named, not inf or a 'rigid-body modes' pivot error
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.0, beta=0.0, points=m.points)
+    with pytest.raises(ValueError, match="overflows c"):
+        rd.step(np.ones(m.n_vertices), 1e308, source=10.0)
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=1.0, beta=0.0, points=m.points)
+    with pytest.raises(ValueError, match="too long for D = 1, beta = 0"):
+        rd.step(np.ones(m.n_vertices), 1e300, source=10.0)
+    assert np.all(np.isfinite(rd.step(np.ones(m.n_vertices), 1.0, source=10.0)))

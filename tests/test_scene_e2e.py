@@ -17,7 +17,7 @@ import pytest
 
 from femshell.cli import main
 from femshell.io import load_checkpoint, read_pvd
-from femshell.scene import list_scenes
+from femshell.scene import SceneError, list_scenes, load_scene, run_scene
 
 SPHERE_TINY = ["mesh.n_vertices=150", "solver.t_final=0.04", "output.every=1"]
 # with D > 0: on 150 vertices the deformed mesh has obtuse triangles, whose negative cotangent
@@ -298,6 +298,25 @@ def test_continuation_resume(tmp_path):
     assert all(p["kind"] in ("branch", "fold", "possible_branch") for p in steps)
     entries, _ = check_series(out, min_frames=3)
     assert [t for t, _ in entries] == list(range(len(entries)))
+
+
+def test_continuation_leaving_the_parameter_range_is_named(tmp_path, capsys):
+    # strain -0.9999999 is a valid start (stretch > 0) but the parameter's difference step crosses -1
+    over = ["mesh.edge_length=0.4", "solver.start=-0.9999999", "solver.max_steps=2", "solver.n_eigs=0"]
+    assert run("clamped-plate-buckling", tmp_path / "run", overrides=over) == 2
+    err = capsys.readouterr().err
+    assert "continuation in growth.strain reached -1.0000009, outside its range" in err
+    assert "Traceback" not in err
+
+
+def test_a_loaded_scene_runs_and_a_wrong_type_is_named(tmp_path):
+    sc = load_scene("clamped-plate-buckling", ["mesh.edge_length=0.4", "solver.stop=1e-4", "solver.max_steps=2",
+                                               "solver.n_eigs=0", "solver.switch_branch=false"])
+    assert run_scene(sc, tmp_path / "run", quiet=True, overrides=()) == 0
+    with pytest.raises(SceneError, match="already loaded"):
+        run_scene(sc, tmp_path / "run2", overrides=["solver.stop=2e-4"])
+    with pytest.raises(SceneError, match="got int"):
+        load_scene(3)
 
 
 # ----------------------------------------------------------------------------- kill -9

@@ -62,10 +62,18 @@ def embedded_scene_path(name: str):
 def load_scene(scene, overrides=()) -> Scene:
     """A validated scene from a .toml path or an embedded scene name, with ``--set`` overrides.
 
-    Raises :class:`SceneError` (a ValueError) with one line per problem.
+    A :class:`Scene` (already validated) is returned as it is. Raises :class:`SceneError`
+    (a ValueError) with one line per problem.
     """
     import difflib
 
+    if isinstance(scene, Scene):
+        if overrides:
+            raise SceneError(f"scene '{scene.name}' is already loaded: give overrides to load_scene "
+                             "together with its file or name")
+        return scene
+    if not isinstance(scene, (str, Path)):
+        raise SceneError(f"a scene is a .toml path, an embedded scene name or a Scene, got {type(scene).__name__}")
     text_path = Path(str(scene)).expanduser()
     if str(scene).endswith(".toml") or text_path.is_file() or "/" in str(scene):
         if not text_path.is_file():

@@ -844,9 +844,14 @@ class ContinuationRunner(BaseRunner):
             key = "strain" if self.param == "growth.strain" else "inner_radius"
 
             def rest_of(lam):
-                s = stretch_field(gr, self.mesh, **{key: lam})
+                try:
+                    s = stretch_field(gr, self.mesh, **{key: lam})
+                    rest = parts.rest_for(s)
+                except ValueError as exc:   # the branch (or a difference step) left the parameter's range
+                    raise ValueError(f"the continuation in {self.param} reached {lam:.9g}, outside its range: "
+                                     f"{exc}; start and stop further inside") from None
                 parts.s = s
-                return parts.rest_for(s)
+                return rest
             self.problem = GrowthParameter(model, rest_of, length_scale=length, parameter_scale=scale)
         self.problem.set_parameter(self.start)
         flat = self.mesh.is_flat()
@@ -1213,7 +1218,9 @@ def _scene_differences(old: dict, new: dict) -> list:
 
 def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=False, overrides=(), max_steps=None,
               quiet=False, verbose=False, stream=None) -> int:
-    """Run a scene (a .toml path or an embedded name); see the module docstring. Returns the exit code.
+    """Run a scene (a .toml path, an embedded name or a loaded :class:`Scene`); see the module docstring.
+
+    Returns the exit code.
 
     Raises :class:`SceneError` / :class:`RunDirError` (ValueErrors, exit code 2) for bad input,
     before anything is computed or any file in ``out`` is touched.

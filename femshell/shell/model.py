@@ -174,6 +174,8 @@ class ShellModel:
 
     def __init__(self, mesh, material: Material, rest: RestState, boundary_conditions=(), loads=(),
                  remove_rigid_modes=None):
+        if not all(hasattr(mesh, k) for k in ("points", "triangles", "topology")):
+            raise TypeError(f"mesh must be a SurfaceMesh (see femshell.mesh), got {type(mesh).__name__}")
         for name, value, kind in (("material", material, Material), ("rest", rest, RestState)):
             if not isinstance(value, kind):
                 raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
