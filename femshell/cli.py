@@ -176,6 +176,7 @@ def _cmd_validate(args):
     unknown = [n for n in names if n not in cases]
     if unknown:
         raise ValueError(f"unknown validation case(s): {', '.join(unknown)}; available: {', '.join(cases)}")
+    _check_writable_dir(Path(args.out), "--out")   # before hours of computing, not after
     ok = True
     for name in names:
         print(f"== {name} ({args.level})")
@@ -207,13 +208,26 @@ def _cmd_scenes(args):
     return 0
 
 
-def _cmd_render(args):
-    from pathlib import Path
+def _check_writable_dir(path: Path, what: str):
+    """Make ``path`` a directory (with parents) and check that files can be created in it."""
+    import tempfile
 
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{what} {path} is a file, not a directory: choose a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: cannot write there ({exc.strerror or exc})") from None
+
+
+def _cmd_render(args):
     from .viz import render_run
 
     if args.every < 1:
         raise ValueError(f"--every must be >= 1, got {args.every}")
+    if Path(args.dir).is_dir():
+        _check_writable_dir(Path(args.dir) / "pictures", "pictures directory")
     t0 = time.perf_counter()
     paths = render_run(args.dir, field=args.field, every=args.every, movie=not args.no_movie, fps=args.fps,
                        cmap=args.cmap)
@@ -237,7 +251,9 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except (ValueError, FileNotFoundError) as exc:  # bad input: a clear message, no traceback
+    except (ValueError, OSError) as exc:  # bad input or an unusable path: a clear message, no traceback
+        if isinstance(exc, OSError) and exc.strerror:
+            exc = f"cannot use {exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
         lines = str(exc).splitlines() or [type(exc).__name__]
         if type(exc).__name__ == "SceneError":      # one problem per line, each with the prefix
             for line in lines:

@@ -67,6 +67,15 @@ def test_existing_output_is_kept_unless_overwrite(tmp_path):
     assert read_mesh(out).topology.is_closed
 
 
+def test_output_directories_that_cannot_be_used(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    r = _run("validate", "patch-tests", "--out", str(afile))      # refused before the case runs
+    assert r.returncode == 2 and "is a file, not a directory" in r.stderr and "Traceback" not in r.stderr
+    r = _run("mesh", "sphere", "--vertices", "100", "-o", str(afile / "s.vtu"))   # a parent that is a file
+    assert r.returncode == 2 and r.stderr.startswith("femshell mesh: error: ") and "Traceback" not in r.stderr
+
+
 def test_help_lists_every_subcommand():
     r = _run("--help")
     for sub in ("mesh", "validate", "run", "scenes"):
