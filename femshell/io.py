@@ -127,6 +127,8 @@ def atomic_path(path) -> Iterator[Path]:
     'hello'
     """
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory; cannot write a file there")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _tmp_name(path)
     try:
@@ -277,8 +279,8 @@ def _check_field(kind: str, name, values, n: int, what: str) -> np.ndarray:
         a = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError) as e:
         raise ValueError(f"{kind} field '{name}' is not a float array: {e}") from None
-    if a.ndim not in (1, 2) or a.shape[0] != n:
-        raise ValueError(f"{kind} field '{name}' has shape {a.shape}; expected ({n},) or ({n}, k) "
+    if a.ndim not in (1, 2) or a.shape[0] != n or (a.ndim == 2 and a.shape[1] == 0):
+        raise ValueError(f"{kind} field '{name}' has shape {a.shape}; expected ({n},) or ({n}, k), k >= 1 "
                          f"(one value per {what})")
     bad = ~np.isfinite(a)
     if bad.any():
@@ -286,7 +288,7 @@ def _check_field(kind: str, name, values, n: int, what: str) -> np.ndarray:
         v = a[tuple(idx)]
         rows = int(np.any(bad.reshape(n, -1), axis=1).sum())
         raise ValueError(f"{kind} field '{name}' holds non-finite values ({_nonfinite_name(v)} at {what} "
-                         f"{int(idx[0])}, {rows} {what}s affected); refusing to write a result with NaN/inf")
+                         f"{int(idx[0])}, {rows} {what}{'' if rows == 1 else 'es' if what.endswith('x') else 's'} affected); refusing to write a result with NaN/inf")
     return a
 
 
@@ -309,10 +311,14 @@ def read_pvd(path) -> list[tuple[float, Path]]:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such PVD file")
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory, not a PVD file (find_series(DIR) finds a run's series)")
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as e:
         raise ValueError(f"{path}: not a valid PVD (XML) file: {e}") from None
+    except OSError as e:
+        raise ValueError(f"{path}: cannot read the PVD file ({e.strerror or e})") from None
     if root.tag != "VTKFile" or root.get("type") != "Collection":
         raise ValueError(f"{path}: not a PVD collection (root <{root.tag} type={root.get('type')!r}>)")
     out = []
@@ -320,7 +326,9 @@ def read_pvd(path) -> list[tuple[float, Path]]:
         try:
             t = float(ds.get("timestep"))
         except (TypeError, ValueError):
-            raise ValueError(f"{path}: DataSet without a numeric timestep: {ET.tostring(ds)!r}") from None
+            t = math.nan
+        if not math.isfinite(t):
+            raise ValueError(f"{path}: DataSet without a finite numeric timestep: {ET.tostring(ds)!r}")
         f = ds.get("file")
         if not f:
             raise ValueError(f"{path}: DataSet at time {t!r} has no file attribute")
@@ -389,7 +397,8 @@ class TimeSeriesWriter:
         Base name of the files.
     resume : bool
         False (a new run): frames of an earlier series with this name in ``out_dir``
-        are deleted. True: the existing ``.pvd`` is read and appended to; entries whose
+        are deleted when the first frame is written (its arguments checked first, so a
+        refused frame leaves the earlier series in place). True: the existing ``.pvd`` is read and appended to; entries whose
         file is missing are dropped with a warning. Call :meth:`truncate_after` with the
         checkpoint time so frames written after the checkpoint disappear.
 
@@ -405,10 +414,16 @@ class TimeSeriesWriter:
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.name = name
-        self.triangles = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1, 3)
+        tri = np.asarray(mesh.triangles)
         self.points = np.asarray(mesh.points, dtype=float)
         if self.points.ndim != 2 or self.points.shape[1] != 3:
             raise ValueError(f"mesh points must have shape (n, 3), got {self.points.shape}")
+        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
+            raise ValueError(f"mesh triangles must be integers of shape (m, 3), got {tri.dtype} {tri.shape}")
+        if tri.size and (tri.min() < 0 or tri.max() >= len(self.points)):
+            raise ValueError(f"mesh triangles index vertices outside 0..{len(self.points) - 1} "
+                             f"(min {tri.min()}, max {tri.max()})")
+        self.triangles = tri.astype(np.int64)
         self.n_points, self.n_cells = len(self.points), len(self.triangles)
         self.pvd_path = self.out_dir / f"{name}.pvd"
         self._pattern = re.compile(re.escape(name) + r"_(\d{6,})\.vtu")
@@ -424,10 +439,9 @@ class TimeSeriesWriter:
             self.entries = kept
             self._write_index()
             self._remove_orphans()
+            self._earlier_series = False
         else:
-            self._remove_orphans(all_frames=True)
-            if self.pvd_path.exists():
-                self.pvd_path.unlink()
+            self._earlier_series = True   # deleted by the first write that passes its checks
 
     # -- bookkeeping
     @property
@@ -501,6 +515,11 @@ class TimeSeriesWriter:
         pdata = {k: _check_field("point", k, v, self.n_points, "vertex") for k, v in (point_data or {}).items()}
         cdata = {k: [_check_field("cell", k, v, self.n_cells, "triangle")]
                  for k, v in (cell_data or {}).items()}
+        if self._earlier_series:
+            self._remove_orphans(all_frames=True)
+            if self.pvd_path.exists():
+                self.pvd_path.unlink()
+            self._earlier_series = False
         index = max((self._index_of(f) for _, f in self.entries), default=-1) + 1
         fname = f"{self.name}_{index:06d}.vtu"
         mesh = meshio.Mesh(pts, [("triangle", self.triangles)], point_data=pdata, cell_data=cdata)
@@ -548,6 +567,8 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
         if isinstance(v, (bool, np.bool_)):
             kinds[k], a = "bool", np.asarray(bool(v))
         elif isinstance(v, (int, np.integer)):
+            if not -2**63 <= int(v) < 2**63:
+                raise ValueError(f"checkpoint state '{k}' = {v} does not fit in 64 bits")
             kinds[k], a = "int", np.asarray(int(v), dtype=np.int64)
         elif isinstance(v, (float, np.floating)):
             kinds[k], a = "float", np.asarray(float(v))
@@ -570,6 +591,8 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
               "meta": to_json_safe(meta or {}, where=f"{path.name} meta")}
     arrays[_HEADER_KEY] = np.frombuffer(json.dumps(header, allow_nan=False).encode("utf-8"), dtype=np.uint8)
 
+    if path.is_dir():
+        raise ValueError(f"checkpoint path {path} is a directory")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _tmp_name(path)
     try:
@@ -606,6 +629,8 @@ def _read_checkpoint(path: Path):
                 if _HEADER_KEY not in z.files:
                     raise CheckpointError(f"{path}: not a femshell checkpoint (no header)")
                 header = json.loads(bytes(z[_HEADER_KEY]).decode("utf-8"))
+                if not isinstance(header, dict) or not isinstance(header.get("kinds"), dict):
+                    raise CheckpointError(f"{path}: not a femshell checkpoint (malformed header)")
                 if header.get("format") != CHECKPOINT_FORMAT:
                     raise CheckpointError(f"{path}: not a femshell checkpoint (format {header.get('format')!r})")
                 if header.get("version", 0) > CHECKPOINT_VERSION:

@@ -120,6 +120,8 @@ def test_time_series_refuses_nonfinite_naming_the_field(tmp_path, square):
         w.write(0.0, point_data={"c": np.zeros(3)})
     with pytest.raises(ValueError, match="points hold non-finite"):
         w.write(0.0, points=np.full((4, 3), np.nan))
+    with pytest.raises(ValueError, match=r"has shape \(4, 0\); expected .* k >= 1"):
+        w.write(0.0, point_data={"c": np.zeros((4, 0))})
     assert len(w) == 0 and not list(tmp_path.glob("*.vtu"))
     w.write(0.0, point_data={"c": np.zeros(4)})
     with pytest.raises(ValueError, match="times must increase"):
@@ -158,9 +160,16 @@ def test_time_series_resume_truncates_to_checkpoint(tmp_path, square):
         np.testing.assert_array_equal(ma.point_data["c"], mb.point_data["c"])
     assert sorted(p.name for p in run_dir.iterdir()) == sorted(p.name for p in ref_dir.iterdir())
 
-    # a new (not resumed) run in the same directory starts a fresh series
+    # a new (not resumed) run in the same directory starts a fresh series, but the earlier one
+    # stays until the new run's first frame passes its checks
+    earlier, index = sorted(run_dir.glob("series_*.vtu")), read_pvd(run_dir / "series.pvd")
     w = TimeSeriesWriter(run_dir, square)
-    assert len(w) == 0 and not list(run_dir.glob("series_*.vtu")) and not (run_dir / "series.pvd").exists()
+    with pytest.raises(ValueError, match="non-finite"):
+        w.write(0.0, point_data={"c": np.array([0, np.nan, 0, 0])})
+    assert sorted(run_dir.glob("series_*.vtu")) == earlier and read_pvd(run_dir / "series.pvd") == index
+    w.write(0.0, point_data={"c": np.zeros(4)})
+    assert [p.name for _, p in read_pvd(run_dir / "series.pvd")] == ["series_000000.vtu"]
+    assert [p.name for p in run_dir.glob("series_*.vtu")] == ["series_000000.vtu"]
 
 
 # ----------------------------------------------------------------------------- checkpoints
@@ -225,3 +234,22 @@ def test_checkpoint_falls_back_to_prev_when_corrupt(tmp_path):
         warnings.simplefilter("error")
         save_checkpoint(p, _state(3), {"step": 3})   # a corrupt current file is simply replaced
         assert load_checkpoint(p)[1] == {"step": 3}
+
+
+def test_paths_and_values_that_cannot_be_written_or_read(tmp_path):
+    (tmp_path / "isdir.npz").mkdir()
+    with pytest.raises(ValueError, match="is a directory"):
+        save_checkpoint(tmp_path / "isdir.npz", _state(1))
+    with pytest.raises(ValueError, match="does not fit in 64 bits"):
+        save_checkpoint(tmp_path / "big.npz", {"n": 2**70})
+    with pytest.raises(ValueError, match="is a directory; cannot write a file there"):
+        atomic_write_json(tmp_path, {"a": 1})
+    np.savez(tmp_path / "list.npz", __femshell_header__=np.frombuffer(b"[1, 2]", np.uint8))
+    with pytest.raises(CheckpointError, match="malformed header"):
+        load_checkpoint(tmp_path / "list.npz")
+    with pytest.raises(ValueError, match="is a directory, not a PVD file"):
+        read_pvd(tmp_path)
+    (tmp_path / "nan.pvd").write_text('<VTKFile type="Collection"><Collection>'
+                                      '<DataSet timestep="nan" file="a.vtu"/></Collection></VTKFile>')
+    with pytest.raises(ValueError, match="without a finite numeric timestep"):
+        read_pvd(tmp_path / "nan.pvd")

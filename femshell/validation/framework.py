@@ -7,11 +7,12 @@ import inspect
 import json
 import math
 import os
-import tempfile
 import time
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
+
+from ..io import atomic_write_text
 
 # command-line name -> module in this package; a case is listed here once it exists
 CASES = {
@@ -116,7 +117,7 @@ def run_case(name: str, level: str = "quick", out_dir: str | os.PathLike = "vali
         log(f"  {r.quantity:<48} {r.value:.6g}{ref}{err}{tol}  n={r.n_vertices} {r.wall_s:.2f}s {status}")
     doc = {"case": name, "level": level, "source": mod.SOURCE, "description": mod.DESCRIPTION,
            "total_wall_s": total, "rows": [_row_json(r) for r in rows]}
-    _atomic_write_text(out / f"{name}.json", json.dumps(doc, indent=1))
+    atomic_write_text(out / f"{name}.json", json.dumps(doc, indent=1))
     _plot(mod, rows, out / f"{name}.png", f"{name} ({level})")
     ok = all(r.passed for r in rows if r.tolerance is not None)
     log(f"{name}: {'passed' if ok else 'FAILED'} ({sum(r.passed is True for r in rows)} of "
@@ -131,13 +132,6 @@ def _row_json(r: Row) -> dict:
             d[k] = None  # never NaN in a result file
     return {k: d[k] for k in ("quantity", "value", "reference", "rel_error", "tolerance", "passed",
                               "n_vertices", "wall_s")}
-
-
-def _atomic_write_text(path: Path, text: str):
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
 
 
 def _plot(mod, rows, path: Path, title: str):
