@@ -101,9 +101,29 @@ def _clim(a, clim):
     return lo, hi
 
 
+def _picture_path(path, suffixes=(".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")) -> Path:
+    """``path`` as a Path, checked before any drawing: a known picture suffix, not a directory."""
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise ValueError(f"picture path {path} must end in one of {', '.join(suffixes)}")
+    if path.is_dir():
+        raise ValueError(f"picture path {path} is a directory")
+    return path
+
+
+def _check_cmap(cmap):
+    import matplotlib
+
+    if isinstance(cmap, str) and cmap not in matplotlib.colormaps:
+        raise ValueError(f"unknown colour map {cmap!r}; e.g. viridis, plasma, magma, inferno, cividis, coolwarm "
+                         "(any name in matplotlib.colormaps)")
+
+
 def _render(points, triangles, scalars, path, *, view, title, cmap, clim, scalar_name,
             window_size=WINDOW_SIZE, show_edges=False):
     pv = _pyvista()
+    path = _picture_path(path)
+    _check_cmap(cmap)
     mesh = _polydata(points, triangles)
     name, a, pref = _scalars(scalars, mesh.n_points, mesh.n_cells, scalar_name)
     lo, hi = _clim(a, clim)
@@ -203,6 +223,8 @@ def view_grid(points, triangles, fields: dict, path, view: str = "top", ncols: i
               cmap="viridis", panel_size=(400, 400), title=None) -> Path:
     """Several fields of one shape side by side: ``fields`` maps name -> (n,) or (m,) array."""
     pv = _pyvista()
+    path = _picture_path(path)
+    _check_cmap(cmap)
     if not fields:
         raise ValueError("view_grid needs at least one field")
     mesh = _polydata(points, triangles)
@@ -237,6 +259,8 @@ _BRANCH = {"branch", "bp", "branch point", "bifurcation", "pitchfork", "bifurcat
 
 
 def _columns(table) -> dict:
+    if table is None or isinstance(table, (str, bytes)) or not hasattr(table, "__iter__"):
+        raise TypeError(f"table must be a dict of columns or a list of row dicts, got {type(table).__name__}")
     if isinstance(table, dict):
         cols = {k: list(np.asarray(v).tolist()) if isinstance(v, np.ndarray) else list(v)
                 for k, v in table.items()}
@@ -256,6 +280,16 @@ def _stable_flags(values, n):
         return [True] * n
     out = []
     for v in values:
+        if isinstance(v, str):   # a column read from CSV: bool("False") would be True
+            word = v.strip().lower()
+            if word in ("", "none", "nan"):
+                v = None
+            elif word in ("true", "1", "yes", "stable"):
+                v = True
+            elif word in ("false", "0", "no", "unstable"):
+                v = False
+            else:
+                raise ValueError(f"stable flag {v!r} is not true/false/1/0 (or empty for unknown)")
         if v is None or (isinstance(v, float) and math.isnan(v)):
             out.append(None)
         else:
@@ -285,10 +319,11 @@ def bifurcation_diagram(table, x: str = "parameter", y: str = "amplitude", stabl
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
+    path = _picture_path(path, (".png",))
     cols = _columns(table)
     for k in (x, y):
         if k not in cols:
-            raise KeyError(f"bifurcation table has no column '{k}' (columns: {', '.join(cols)})")
+            raise ValueError(f"bifurcation table has no column '{k}' (columns: {', '.join(cols)})")
     xs = np.asarray(cols[x], dtype=float)
     ys = np.asarray(cols[y], dtype=float)
     n = len(xs)
@@ -388,6 +423,12 @@ def _iter_frames(frames, n_frames):
             yield _frame_image(item)
 
 
+def _check_fps(fps):
+    # a GIF stores each frame's duration in 1/100 s in 16 bits: 0.002 fps (500 s a frame) is near that limit
+    if not (isinstance(fps, (int, float, np.integer, np.floating)) and 0.002 <= fps <= 1000):
+        raise ValueError(f"fps must be a number in [0.002, 1000] frames per second, got {fps!r}")
+
+
 def render_movie(frames: Sequence | Iterable | Callable, path, fps: float = 5.0, *, n_frames: int | None = None,
                  loop: int = 0) -> Path:
     """A movie from PNG paths, PIL images or uint8 arrays, or ``frames(i)`` for i < ``n_frames``.
@@ -398,8 +439,7 @@ def render_movie(frames: Sequence | Iterable | Callable, path, fps: float = 5.0,
     """
     path = Path(path)
     ext = path.suffix.lower()
-    if fps <= 0:
-        raise ValueError(f"fps must be > 0, got {fps}")
+    _check_fps(fps)
     it = _iter_frames(frames, n_frames)
     try:
         first = next(it)
@@ -488,6 +528,9 @@ def render_run(out_dir, field: str | None = None, *, series: str | None = None, 
         raise ValueError(f"{pvd}: the time series has no frames")
     if every < 1:
         raise ValueError(f"every must be >= 1, got {every}")
+    if movie:
+        _check_fps(fps)
+    _check_cmap(cmap)
     chosen = list(range(0, len(entries), every))
     if chosen[-1] != len(entries) - 1:
         chosen.append(len(entries) - 1)
@@ -498,10 +541,15 @@ def render_run(out_dir, field: str | None = None, *, series: str | None = None, 
         v = np.asarray(v, dtype=float)
         return f, name, (np.linalg.norm(v, axis=1) if v.ndim == 2 else v)
 
-    # pass 1: one colour range over all frames (frames are read one at a time: long runs fit in memory)
+    # pass 1: one colour range over all frames, and every frame checked before any picture is
+    # replaced (frames are read one at a time: long runs fit in memory)
     lo, hi = math.inf, -math.inf
     for i in chosen:
-        _, _, v = field_of(i)
+        f, _, v = field_of(i)
+        try:
+            _polydata(f.points, f.triangles)
+        except ValueError as exc:
+            raise ValueError(f"{entries[i][1]}: {exc}") from None
         if not np.all(np.isfinite(v)):
             raise ValueError(f"{entries[i][1]}: the field to draw holds NaN or infinity")
         lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))

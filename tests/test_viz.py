@@ -50,6 +50,21 @@ def test_render_run(tmp_path, small_sphere):
     with Image.open(tmp_path / "movie.gif") as g:
         assert g.n_frames == 3 and g.size == (800, 800)
 
+    # a broken frame, a bad colour map or frame rate: refused before any picture is replaced
+    before = {p: p.read_bytes() for p in (tmp_path / "pictures").iterdir()}
+    for kwargs, words in (({"cmap": "no-such-map"}, "unknown colour map 'no-such-map'"),
+                          ({"fps": 0.001}, r"fps must be a number in \[0.002, 1000\]")):
+        with pytest.raises(ValueError, match=words):
+            viz.render_run(tmp_path, **kwargs)
+    import meshio   # the writer refuses NaN points itself: break a frame file by hand
+
+    frame = meshio.read(tmp_path / "series_000001.vtu")
+    frame.points[5] = np.nan
+    meshio.write(tmp_path / "series_000001.vtu", frame)
+    with pytest.raises(ValueError, match="series_000001.vtu: points hold NaN"):
+        viz.render_run(tmp_path, cmap="plasma")
+    assert {p: p.read_bytes() for p in (tmp_path / "pictures").iterdir()} == before
+
 
 def test_bifurcation_diagram(tmp_path):
     lam = np.linspace(0, 2, 41)
@@ -65,8 +80,25 @@ def test_bifurcation_diagram(tmp_path):
     assert img.shape[2] == 3 and img.std() > 5
     cols = {"parameter": lam, "amplitude": lam ** 2, "stable": lam < 1.5}
     assert viz.bifurcation_diagram(cols, y="amplitude", path=tmp_path / "bif2.png").exists()
-    with pytest.raises(KeyError, match="no column 'energy'"):
+    with pytest.raises(ValueError, match="no column 'energy'"):
         viz.bifurcation_diagram(cols, y="energy", path=tmp_path / "bif3.png")
+
+
+def test_picture_paths_and_csv_stability_flags(tmp_path, small_sphere):
+    m = small_sphere
+    with pytest.raises(ValueError, match="picture path .*frame must end in one of .png"):
+        viz.top_view(m.points, m.triangles, m.points[:, 2], tmp_path / "frame")
+    (tmp_path / "d.png").mkdir()
+    with pytest.raises(ValueError, match="is a directory"):
+        viz.top_view(m.points, m.triangles, m.points[:, 2], tmp_path / "d.png")
+    rows = [{"parameter": "0", "amplitude": "0", "stable": "True"}, {"parameter": "1", "amplitude": "1",
+                                                                    "stable": "False"}]
+    assert viz._stable_flags([r["stable"] for r in rows], 2) == [True, False]    # bool("False") is True
+    assert viz.bifurcation_diagram(rows, path=tmp_path / "b.png").exists()
+    with pytest.raises(ValueError, match="stable flag 'maybe'"):
+        viz._stable_flags(["maybe"], 1)
+    with pytest.raises(TypeError, match="got NoneType"):
+        viz.bifurcation_diagram(None, path=tmp_path / "c.png")
 
 
 def test_render_movie_from_arrays_and_callback(tmp_path):
