@@ -69,8 +69,40 @@ def _mesh(points, triangles):
     if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and not np.issubdtype(tri.dtype, np.integer)):
         raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}")
     if tri.size and (tri.min() < 0 or tri.max() >= len(pts)):
-        raise ValueError(f"triangles index vertex {tri.max()} but there are only {len(pts)} points")
+        bad = tri.min() if tri.min() < 0 else tri.max()
+        raise ValueError(f"triangles index vertex {bad}, outside 0..{len(pts) - 1}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError(f"points hold NaN or infinity at {int((~np.isfinite(pts)).any(axis=1).sum())} vertices")
     return pts, tri.astype(np.int64)
+
+
+def _real(name, v, lo=-math.inf, hi=math.inf, text=None):
+    """float(v), finite and in [lo, hi], or a ValueError naming the argument."""
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {v!r}") from None
+    if not (math.isfinite(x) and lo <= x <= hi):
+        raise ValueError(f"{name} must be {text or f'a finite number in [{lo:g}, {hi:g}]'}, got {v!r}")
+    return x
+
+
+def _count(name, v, lo, hi):
+    """An integer argument in [lo, hi] (a whole float such as 18.0 is accepted)."""
+    x = _real(name, v, lo, hi, text=f"an integer in [{lo}, {hi}]")
+    if x != int(x):
+        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+    return int(x)
+
+
+def _vector(name, v, size):
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != (size,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be {size} finite numbers, got {v!r}")
+    return a
 
 
 def _field(values, n, name="values"):
@@ -289,8 +321,10 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
     pts, tri = _mesh(points, triangles)
     n = len(pts)
     cv = _field(c, n, "c")
-    if not math.isfinite(c_star):
-        raise ValueError(f"c_star must be finite, got {c_star}")
+    c_star = _real("c_star", c_star)
+    if min_area is not None:
+        min_area = _real("min_area", min_area, 0.0, text="a finite area >= 0")
+    ridge_elongation = _real("ridge_elongation", ridge_elongation, 1.0, text="a finite number >= 1")
     tri_area = triangle_areas(pts, tri)
     area_total = float(tri_area.sum())
     if min_area is None:
@@ -430,14 +464,15 @@ def polar_profile(points, values, n_bins: int = 18, *, triangles=None, pole=(0.0
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError(f"points hold NaN or infinity at {int((~np.isfinite(pts)).any(axis=1).sum())} vertices")
     v = _field(values, len(pts), "values")
-    if int(n_bins) < 1:
-        raise ValueError(f"n_bins must be >= 1, got {n_bins}")
-    p = np.asarray(pole, dtype=float)
-    if p.shape != (3,) or not np.linalg.norm(p) > 0:
+    n_bins = _count("n_bins", n_bins, 1, 100_000)
+    p = _vector("pole", pole, 3)
+    if not np.linalg.norm(p) > 0:
         raise ValueError(f"pole must be a non-zero 3-vector, got {pole!r}")
     p = p / np.linalg.norm(p)
-    ctr = pts.mean(axis=0) if center is None else np.asarray(center, dtype=float)
+    ctr = pts.mean(axis=0) if center is None else _vector("center", center, 3)
     d = pts - ctr
     r = np.linalg.norm(d, axis=1)
     theta = np.arccos(np.clip((d @ p) / np.maximum(r, 1e-300), -1.0, 1.0))
@@ -483,19 +518,29 @@ def _circle_samples(points, values, radius, center, n_samples, triangles):
         if np.ptp(pts[:, 2]) > 1e-9 * extent:
             raise ValueError(f"points must be a flat mesh in the xy plane (the reference positions), got z from "
                              f"{pts[:, 2].min():.6g} to {pts[:, 2].max():.6g}")
-    if not (math.isfinite(radius) and radius > 0):
-        raise ValueError(f"radius must be > 0, got {radius}")
-    ns = int(n_samples)
-    if ns < 8:
-        raise ValueError(f"n_samples must be >= 8, got {n_samples}")
+    radius = _real("radius", radius, 0.0, text="a finite number > 0")
+    if radius == 0:
+        raise ValueError("radius must be a finite number > 0, got 0")
+    ns = _count("n_samples", n_samples, 8, 1_000_000)
     phi = 2 * math.pi * np.arange(ns) / ns
-    cx, cy = float(center[0]), float(center[1])
+    cx, cy = _vector("center", center, 2)
     q = np.column_stack([cx + radius * np.cos(phi), cy + radius * np.sin(phi)])
     if triangles is not None:
-        w = _sample_on_mesh(pts[:, :2], _mesh(pts, triangles)[1], v, q)
+        tri = _mesh(pts, triangles)[1]
+        if not len(tri):
+            raise ValueError("triangles is empty: no mesh to sample the circle on")
+        w = _sample_on_mesh(pts[:, :2], tri, v, q)
     else:
         from scipy.interpolate import LinearNDInterpolator
-        w = LinearNDInterpolator(pts[:, :2], v)(q)
+        from scipy.spatial import QhullError
+
+        if not np.all(np.isfinite(pts)):
+            raise ValueError("points hold NaN or infinity")
+        try:
+            w = LinearNDInterpolator(pts[:, :2], v)(q)
+        except (QhullError, ValueError) as exc:   # fewer than 3 points, or all on a line
+            raise ValueError(f"cannot triangulate the points in the xy plane ({str(exc).splitlines()[0]}); "
+                             "pass the mesh's triangles") from None
     if not np.all(np.isfinite(w)):
         raise ValueError(f"the circle of radius {radius} about {center} leaves the mesh")
     return w
@@ -536,9 +581,9 @@ def count_wrinkles(points, values, radius: float, *, center=(0.0, 0.0), n_sample
     """
     if method not in ("fourier", "zeros"):
         raise ValueError(f"method must be 'fourier' or 'zeros', got {method!r}")
-    if int(min_mode) < 1:
-        raise ValueError(f"min_mode must be >= 1, got {min_mode}")
     w = _circle_samples(points, values, radius, center, n_samples, triangles)
+    min_mode = _count("min_mode", min_mode, 1, len(w) // 2)
+    rel_tol = _real("rel_tol", rel_tol, 0.0, 1.0)
     amp = _spectrum(w)
     scale = amp[0] + amp[1:].sum()
     modes = amp[int(min_mode):]

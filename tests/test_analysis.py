@@ -160,3 +160,31 @@ def test_count_wrinkles_on_a_disk():
     ball = sphere(radius=5.0, n_vertices=200)     # a curved mesh is not projected onto the xy plane
     with pytest.raises(ValueError, match="flat mesh in the xy plane .* got z from -5"):
         count_wrinkles(ball.points, ball.points[:, 2], 4.0, triangles=ball.triangles)
+
+
+def test_bad_arguments_are_named():
+    m = disk(radius=5.0, edge_length=0.8)
+    ball = sphere(radius=3.0, n_vertices=200)
+    r = np.hypot(m.points[:, 0], m.points[:, 1])
+    broken = ball.points.copy()
+    broken[3, 0] = np.nan
+    ones = np.ones(ball.n_vertices)
+    cases = [
+        (lambda: find_spots(broken, ball.triangles, ones, 0.1), "points hold NaN or infinity at 1"),
+        (lambda: find_spots(ball.points, ball.triangles - 1, ones, 0.1), "index vertex -1, outside 0..201"),
+        (lambda: find_spots(ball.points, ball.triangles, ones, None), "c_star must be a number, got None"),
+        (lambda: find_spots(ball.points, ball.triangles, ones, 0.1, min_area=np.nan), "min_area must be"),
+        (lambda: polar_profile(ball.points, ones, center=(0, 0)), r"center must be 3 finite numbers"),
+        (lambda: polar_profile(ball.points, ones, n_bins=2.5), r"n_bins must be an integer in \[1, 100000\]"),
+        (lambda: polar_profile(broken, ones), "points hold NaN"),
+        (lambda: count_wrinkles(np.array([[0, 0], [1, 0.0], [2, 0]]), [1, 2, 3], 0.5), "cannot triangulate"),
+        (lambda: count_wrinkles(m.points, r, 2.0, triangles=np.zeros((0, 3), int)), "triangles is empty"),
+        (lambda: count_wrinkles(m.points, r, 2.0, triangles=m.triangles, min_mode=257),
+         r"min_mode must be an integer in \[1, 256\]"),
+        (lambda: count_wrinkles(m.points, r, 2.0, triangles=m.triangles, center=0.0), "center must be 2"),
+        (lambda: count_wrinkles(m.points, r, 2.0, triangles=m.triangles, n_samples=np.nan), "n_samples must be"),
+        (lambda: count_wrinkles(m.points, r, 2.0, triangles=m.triangles, rel_tol=-1), "rel_tol must be"),
+    ]
+    for call, words in cases:
+        with pytest.raises(ValueError, match=words):
+            call()
