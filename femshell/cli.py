@@ -104,6 +104,7 @@ def _parser():
                                    "(pictures/side_last.png) and DIR/movie.gif.")
     d.add_argument("dir", help="a run directory (written by femshell run)")
     d.add_argument("--field", help="field to colour by (default c, else the first scalar field)")
+    d.add_argument("--series", help="the time series NAME.pvd to render (default series.pvd, else the only one)")
     d.add_argument("--every", type=int, default=1, help="render every N-th frame (the last one always)")
     d.add_argument("--fps", type=_positive("--fps"), default=5.0, help="movie frames per second")
     d.add_argument("--cmap", default="viridis", help="matplotlib colour map")
@@ -172,6 +173,8 @@ def _cmd_validate(args):
         for name, desc in cases.items():
             print(f"{name:<34} {desc}")
         return 0
+    if "all" in args.name and len(args.name) > 1:
+        raise ValueError("'all' runs every case; give it alone or name the cases")
     names = list(cases) if args.name == ["all"] else args.name
     unknown = [n for n in names if n not in cases]
     if unknown:
@@ -229,8 +232,8 @@ def _cmd_render(args):
     if Path(args.dir).is_dir():
         _check_writable_dir(Path(args.dir) / "pictures", "pictures directory")
     t0 = time.perf_counter()
-    paths = render_run(args.dir, field=args.field, every=args.every, movie=not args.no_movie, fps=args.fps,
-                       cmap=args.cmap)
+    paths = render_run(args.dir, field=args.field, series=args.series, every=args.every, movie=not args.no_movie,
+                       fps=args.fps, cmap=args.cmap)
     tops = [p for p in paths if Path(p).name.startswith("top_")]
     others = [p for p in paths if not Path(p).name.startswith("top_")]
     print(f"rendered {len(tops)} top view(s) in {Path(args.dir) / 'pictures'}/ and {', '.join(map(str, others))} "

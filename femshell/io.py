@@ -272,6 +272,9 @@ def write_summary(out_dir, summary: dict) -> Path:
 
 # ----------------------------------------------------------------------------- time series
 
+_PLURAL = {"vertex": "vertices", "triangle": "triangles"}
+
+
 def _check_field(kind: str, name, values, n: int, what: str) -> np.ndarray:
     if not isinstance(name, str) or not name:
         raise ValueError(f"{kind} field names must be non-empty strings, got {name!r}")
@@ -288,7 +291,8 @@ def _check_field(kind: str, name, values, n: int, what: str) -> np.ndarray:
         v = a[tuple(idx)]
         rows = int(np.any(bad.reshape(n, -1), axis=1).sum())
         raise ValueError(f"{kind} field '{name}' holds non-finite values ({_nonfinite_name(v)} at {what} "
-                         f"{int(idx[0])}, {rows} {what}{'' if rows == 1 else 'es' if what.endswith('x') else 's'} affected); refusing to write a result with NaN/inf")
+                         f"{int(idx[0])}, {rows} {what if rows == 1 else _PLURAL[what]} affected); "
+                         "refusing to write a result with NaN/inf")
     return a
 
 
@@ -339,6 +343,8 @@ def read_pvd(path) -> list[tuple[float, Path]]:
 def find_series(out_dir, name: str | None = None) -> Path:
     """The PVD file of a run directory: ``<name>.pvd`` if given, else ``series.pvd``, else the only .pvd."""
     out_dir = Path(out_dir)
+    if out_dir.is_file():
+        raise ValueError(f"{out_dir} is a file; give the run directory that holds the series")
     if not out_dir.is_dir():
         raise FileNotFoundError(f"{out_dir}: no such directory")
     if name is not None:
@@ -352,8 +358,8 @@ def find_series(out_dir, name: str | None = None) -> Path:
     if not found:
         raise FileNotFoundError(f"{out_dir}: no time series (.pvd file) in this directory")
     if len(found) > 1:
-        raise ValueError(f"{out_dir}: several time series ({', '.join(p.name for p in found)}); "
-                         "pass the name of one")
+        raise ValueError(f"{out_dir}: several time series ({', '.join(p.name for p in found)}) and no "
+                         "series.pvd; pass the name of one (femshell render --series NAME)")
     return found[0]
 
 

@@ -535,17 +535,22 @@ def render_run(out_dir, field: str | None = None, *, series: str | None = None, 
     if chosen[-1] != len(entries) - 1:
         chosen.append(len(entries) - 1)
 
-    def field_of(i):
+    def field_of(i, field):
         f = read_frame(entries[i][1], entries[i][0])
         name, v = _pick_field(f, field)
         v = np.asarray(v, dtype=float)
         return f, name, (np.linalg.norm(v, axis=1) if v.ndim == 2 else v)
 
+    if field is None:   # chosen once, from the first frame: every frame is coloured by the same field
+        field = field_of(chosen[0], None)[1]
+        if field == "z":
+            field = None
+
     # pass 1: one colour range over all frames, and every frame checked before any picture is
     # replaced (frames are read one at a time: long runs fit in memory)
     lo, hi = math.inf, -math.inf
     for i in chosen:
-        f, _, v = field_of(i)
+        f, _, v = field_of(i, field)
         try:
             _polydata(f.points, f.triangles)
         except ValueError as exc:
@@ -557,7 +562,7 @@ def render_run(out_dir, field: str | None = None, *, series: str | None = None, 
     pic_dir.mkdir(parents=True, exist_ok=True)
     written, tops = [], []
     for i in chosen:
-        f, name, v = field_of(i)
+        f, name, v = field_of(i, field)
         p = pic_dir / f"top_{i:06d}.png"
         top_view(f.points, f.triangles, (name, v), p, title=f"t = {f.time:.4g}", cmap=cmap, clim=(lo, hi))
         tops.append(p)
