@@ -566,6 +566,8 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
         raise ValueError(f"checkpoint path must end in .npz, got {path.name}")
     if not isinstance(state, dict):
         raise TypeError(f"state must be a dict, got {type(state).__name__}")
+    if meta is not None and not isinstance(meta, dict):
+        raise TypeError(f"meta must be a dict, got {type(meta).__name__}")
     kinds, arrays = {}, {}
     for k, v in state.items():
         if not isinstance(k, str) or not k or k.startswith("__"):

@@ -91,7 +91,12 @@ def _scalars(values, n_points, n_cells, default_name):
 
 def _clim(a, clim):
     if clim is not None:
-        lo, hi = float(clim[0]), float(clim[1])
+        try:
+            lo, hi = float(clim[0]), float(clim[1])
+        except (TypeError, ValueError, IndexError):
+            lo = hi = math.nan
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ValueError(f"clim must be two finite numbers (low, high) with low <= high, got {clim!r}")
     else:
         lo, hi = float(a.min()), float(a.max())
         if lo != 0 and abs(lo) < 1e-9 * abs(hi):   # 1e-108 on the bar means 0

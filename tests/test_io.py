@@ -240,6 +240,8 @@ def test_paths_and_values_that_cannot_be_written_or_read(tmp_path):
     (tmp_path / "isdir.npz").mkdir()
     with pytest.raises(ValueError, match="is a directory"):
         save_checkpoint(tmp_path / "isdir.npz", _state(1))
+    with pytest.raises(TypeError, match="meta must be a dict, got list"):
+        save_checkpoint(tmp_path / "m.npz", _state(1), [1, 2])
     with pytest.raises(ValueError, match="does not fit in 64 bits"):
         save_checkpoint(tmp_path / "big.npz", {"n": 2**70})
     with pytest.raises(ValueError, match="is a directory; cannot write a file there"):

@@ -34,6 +34,9 @@ def test_top_view_png(tmp_path, small_sphere):
     assert centre[..., 0].mean() > 120 and centre[..., 2].mean() < 120
     with pytest.raises(ValueError, match="field 'c' holds NaN"):
         viz.top_view(m.points, m.triangles, ("c", np.full(m.n_vertices, np.nan)), tmp_path / "nan.png")
+    for clim in ((np.nan, 1.0), (1.0, 0.0), (1.0,)):
+        with pytest.raises(ValueError, match="clim must be two finite numbers"):
+            viz.top_view(m.points, m.triangles, m.points[:, 2], tmp_path / "nan.png", clim=clim)
     assert not (tmp_path / "nan.png").exists()
 
 
