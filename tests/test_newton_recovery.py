@@ -344,6 +344,16 @@ def test_flat_plate_grown_past_buckling_is_left_for_a_stable_buckled_state():
     assert np.abs(model.positions(r.u)[:, 2]).max() > 0.05     # out of plane
 
 
+@pytest.mark.parametrize("strain, pressure", [(0.0, None), (0.0, 0.0), (1e-12, None)])
+def test_a_start_that_is_already_the_equilibrium_converges_at_once(strain, pressure):
+    """No load (or a zero one) and no growth, or growth far below buckling: the flat start is the
+    equilibrium, its residual is round-off with nothing to scale the tolerance; it used to end in
+    'line search failed' because rtol |r(u0)| is below any iterate's round-off."""
+    model = _clamped_disk(strain, pressure)
+    r = minimize(model, model.initial_unknowns(), stable=True, log=None)
+    assert r.converged and r.iterations == 0 and r.stable
+
+
 def test_load_stepping_from_a_load_factor_of_zero():
     """At load factor 0 the unloaded start is the equilibrium (its residual is round-off): converged at
     once, and follow_load over factors starting at 0 returns (it used to halve a step of 0 forever)."""

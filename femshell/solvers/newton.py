@@ -38,6 +38,7 @@ Example
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -214,7 +215,8 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
         fac = _factorize(K, hessian_factors)
         times["factorize"] += time.perf_counter() - t
         n_neg = fac.inertia[1] if fac.inertia is not None else None
-        if res <= rtol * residual_scale + atol:
+        floor = _roundoff_residual(K, u)
+        if res <= max(rtol * residual_scale + atol, floor):
             if not stable or n_neg == 0:
                 break
             if n_neg is None:
@@ -260,7 +262,7 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                 break
             raise NewtonError(f"line search failed at iteration {it} (|r| = {res:.3e})", _result(
                 u, False, it, e, res, residual_scale, n_neg, history, times))
-    converged = roundoff_floor or res <= rtol * residual_scale + atol
+    converged = roundoff_floor or res <= max(rtol * residual_scale + atol, floor)
     out = _result(u, converged, it, e, res, residual_scale, n_neg, history, times)
     if not converged:
         raise NewtonError(f"Newton did not converge in {max_iter} iterations: |r| = {res:.3e} > "
@@ -322,6 +324,17 @@ def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, m
 def _result(u, converged, it, e, res, scale, n_neg, history, times):
     return NewtonResult(u, converged, it, e, res, scale, n_neg, None if n_neg is None else n_neg == 0,
                         history, dict(times))
+
+
+def _roundoff_residual(K, u) -> float:
+    """|r| that float64 cannot resolve at u: ε √n max|K_ij| max|u|.
+
+    A start that is already the equilibrium (no load, no growth) has a residual of
+    round-off only; with no load to scale the tolerance, rtol |r(u0)| is below what
+    any iterate can reach, and without this floor Newton failed there.
+    """
+    data = K.data if sp.issparse(K) else np.asarray(K)
+    return float(np.finfo(float).eps * math.sqrt(len(u)) * np.abs(data).max() * np.abs(u).max()) if len(u) else 0.0
 
 
 def _factorize(K, factorizer):
