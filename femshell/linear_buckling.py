@@ -86,6 +86,7 @@ Example
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -130,15 +131,37 @@ def _mesh2d(points2d, triangles):
     return MeshTri(np.ascontiguousarray(p.T), np.ascontiguousarray(t.T))
 
 
-def _per_triangle(value, m, name):
-    """Broadcast a scalar or a per-triangle array to shape (m,)."""
-    a = np.asarray(value, float)
-    if a.ndim == 0:
-        return np.full(m, float(a))
-    a = a.reshape(-1)
+def _per_triangle(value, m, name, positive=False):
+    """Broadcast a scalar or a per-triangle array to shape (m,); finite (and > 0 if ``positive``)."""
+    try:
+        a = np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number or one number per triangle, got {value!r}") from None
+    a = np.full(m, float(a)) if a.ndim == 0 else a.reshape(-1)
     if a.shape != (m,):
         raise ValueError(f"{name} must be a scalar or have one value per triangle ({m}), got shape {a.shape}")
+    bad = ~np.isfinite(a) | ((a <= 0) if positive else False)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{name} must be finite{' and > 0' if positive else ''}, got {a[i]:g} at triangle {i}")
     return a
+
+
+def _poisson(nu) -> float:
+    """Poisson's ratio of a plate, in (-1, 0.5]."""
+    try:
+        v = float(nu)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not -1.0 < v <= 0.5:
+        raise ValueError(f"nu must be in (-1, 0.5], got {nu!r}")
+    return v
+
+
+def _count(name, value, lo):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+        raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+    return int(value)
 
 
 def _at_quadrature(values, basis):
@@ -312,8 +335,9 @@ def membrane_prestress(points2d, triangles, growth_strain, E=1.0, nu=0.3, thickn
     mesh = _mesh2d(points2d, triangles)
     m = mesh.t.shape[1]
     g = _per_triangle(growth_strain, m, "growth_strain")
-    t = _per_triangle(thickness, m, "thickness")
-    Ee = _per_triangle(E, m, "E")
+    t = _per_triangle(thickness, m, "thickness", positive=True)
+    Ee = _per_triangle(E, m, "E", positive=True)
+    nu = _poisson(nu)
     if order not in (1, 2):
         raise ValueError("order must be 1 or 2")
     elem = ElementVector(ElementTriP2() if order == 2 else ElementTriP1())
@@ -447,12 +471,24 @@ def buckling_loads(points2d, triangles, N, E=1.0, nu=0.3, thickness=1.0, D=None,
     mesh = _mesh2d(points2d, triangles)
     m = mesh.t.shape[1]
     basis = Basis(mesh, ElementTriMorley())
-    Dm = _per_triangle(bending_stiffness(E, nu, thickness) if D is None else D, m, "D")
+    nu = _poisson(nu)
+    k, extra = _count("k", k, 1), _count("extra", extra, 0)
+    if D is None:
+        Dm = bending_stiffness(_per_triangle(E, m, "E", positive=True),
+                               nu, _per_triangle(thickness, m, "thickness", positive=True))
+    else:
+        Dm = _per_triangle(D, m, "D", positive=True)
     Nm = np.asarray(N, float)
     if Nm.shape == (3,):
         Nm = np.tile(Nm, (m, 1))
     if Nm.shape != (m, 3):
         raise ValueError(f"N must have shape ({m}, 3) or (3,), got {Nm.shape}")
+    if not np.all(np.isfinite(Nm)):
+        raise ValueError(f"N holds NaN or infinity in {int((~np.isfinite(Nm)).any(axis=1).sum())} triangles")
+    if supported_vertices is not None:
+        sv = np.asarray(supported_vertices).ravel()
+        if sv.size and (sv.dtype.kind not in "iu" or sv.min() < 0 or sv.max() >= mesh.p.shape[1]):
+            raise ValueError(f"supported_vertices must be vertex indices in [0, {mesh.p.shape[1] - 1}]")
 
     if _no_compression(Nm):
         # K_g is negative semidefinite: no positive mu exists (ARPACK would crawl towards
@@ -688,6 +724,12 @@ def critical_growth_strain(R1, R2, h, g0=0.5, nu=0.5, E=1.0, thin_grown=True, bc
     first mode, from :func:`mode_wavenumber` on circles r in [0.3, 1.5] R2).
     """
     t0 = time.perf_counter()
+    for name, v in (("R1", R1), ("R2", R2), ("h", h), ("g0", g0), ("E", E)):
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+    if not R2 < R1:
+        raise ValueError(f"R2 must be < R1, got R2 = {R2}, R1 = {R1}")
+    _count("resolution", resolution, 1)
     if mesh is None:
         mesh = _disk_mesh(R1, R2, resolution, edge_length, inner_edge_length, seed)
     if hasattr(mesh, "points"):
@@ -743,7 +785,8 @@ class CriticalRadius:
     ``R2``: the root; ``mu``: mu of the target mode on the last mesh (≈ 1); ``n``: the
     target mode's azimuthal wavenumber (that of the first mode if no n was asked);
     ``history``: [(R2, mu_target)] of every evaluation; ``last``: the
-    :class:`CriticalGrowth` of the last evaluation.
+    :class:`CriticalGrowth` of the last evaluation; ``converged``: |mu − 1| < rtol was
+    reached within maxiter evaluations (if not, R2 is the last iterate, not a root).
     """
 
     R2: float
@@ -753,6 +796,7 @@ class CriticalRadius:
     last: CriticalGrowth
     n_vertices: int
     wall_s: float
+    converged: bool = True
 
 
 def critical_inner_radius(R1, h, g0=0.5, n=None, nu=0.5, E=1.0, thin_grown=True, bc="free",
@@ -772,7 +816,9 @@ def critical_inner_radius(R1, h, g0=0.5, n=None, nu=0.5, E=1.0, thin_grown=True,
     target n; doubled if no mode with n waves is among them).
     """
     t0 = time.perf_counter()
+    _count("maxiter", maxiter, 1)
     kk = k if k is not None else (4 if n is None else 8 + 6 * n)
+    converged = False
     x = np.log(R2_start if R2_start is not None else h)
     hist, pts = [], []
     lo = hi = None   # bracket: f(lo) > 0 (stable, mu > 1), f(hi) < 0
@@ -804,6 +850,7 @@ def critical_inner_radius(R1, h, g0=0.5, n=None, nu=0.5, E=1.0, thin_grown=True,
         hist.append((R2, mu_t))
         pts.append((x, f))
         if abs(mu_t - 1.0) < rtol:
+            converged = True
             break
         if f > 0:
             lo = x if lo is None else max(lo, x)
@@ -820,4 +867,4 @@ def critical_inner_radius(R1, h, g0=0.5, n=None, nu=0.5, E=1.0, thin_grown=True,
             xn = 0.5 * (lo + hi)      # safeguard: bisection of the bracket
         x = xn
     return CriticalRadius(R2=hist[-1][0], mu=hist[-1][1], n=n_t, history=hist, last=last,
-                          n_vertices=last.n_vertices, wall_s=time.perf_counter() - t0)
+                          n_vertices=last.n_vertices, wall_s=time.perf_counter() - t0, converged=converged)

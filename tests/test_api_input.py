@@ -150,3 +150,19 @@ def test_curvature_spot_and_loop_arguments(small_disk):
     with pytest.raises(ValueError, match="too long for D = 1, beta = 0"):
         rd.step(np.ones(m.n_vertices), 1e300, source=10.0)
     assert np.all(np.isfinite(rd.step(np.ones(m.n_vertices), 1.0, source=10.0)))
+
+
+def test_load_magnitudes(small_disk):
+    from femshell.shell import AreaLoad, DeadLoad, DeadPressure, FollowerPressure
+
+    m = small_disk
+    for make, words in ((lambda: DeadPressure(m, np.nan), "pressure must be one finite number, got nan"),
+                        (lambda: DeadPressure(m, np.full(m.n_triangles, 1e-6)), "pressure must be one finite"),
+                        (lambda: FollowerPressure(np.inf), "pressure must be one finite number, got inf"),
+                        (lambda: AreaLoad(m, (0.0, 1e-6)), r"traction must be finite numbers of shape \(3,\)"),
+                        (lambda: EdgeForce(m, "outer", (np.nan, 0, 0)), "force_per_length must be finite"),
+                        (lambda: EdgeMoment("outer", "1e-3x"), "moment must be one finite number"),
+                        (lambda: DeadLoad(np.zeros((4, 2))), r"shape \(n_vertices, 3\), got shape \(4, 2\)")):
+        with pytest.raises(ValueError, match=words):
+            make()
+    assert AreaLoad(m, np.tile([0.0, 0.0, -1.0], (m.n_triangles, 1))).forces[:, 2].sum() < 0   # per triangle

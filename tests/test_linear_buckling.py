@@ -124,3 +124,20 @@ def test_bad_input_is_rejected(disk):
         lb.buckling_loads(p, t, (-1.0, -1.0, 0.0), bc="hinged")
     with pytest.raises(ValueError, match="thickness"):
         lb.membrane_prestress(p, t, 0.01, thickness=np.ones(5))
+    N = (-1.0, -1.0, 0.0)
+    for kwargs, words in (({"thickness": -0.01}, r"thickness must be finite and > 0, got -0.01"),
+                          ({"D": -1e-6}, "D must be finite and > 0"),
+                          ({"nu": 0.7}, r"nu must be in \(-1, 0.5\], got 0.7"),
+                          ({"E": 0.0}, "E must be finite and > 0"),
+                          ({"k": 2.5}, "k must be an integer >= 1"),
+                          ({"supported_vertices": [10**9]}, "supported_vertices must be vertex indices")):
+        with pytest.raises(ValueError, match=words):      # plausible numbers came back for the first four
+            lb.buckling_loads(p, t, N, bc="clamped", **kwargs)
+    with pytest.raises(ValueError, match="N holds NaN"):
+        lb.buckling_loads(p, t, (np.nan, -1.0, 0.0), bc="clamped")
+    with pytest.raises(ValueError, match="growth_strain must be finite, got nan"):
+        lb.membrane_prestress(p, t, np.nan)
+    with pytest.raises(ValueError, match="g0 must be a finite number > 0, got 0"):
+        lb.critical_growth_strain(1.0, 0.5, 0.01, g0=0)
+    with pytest.raises(ValueError, match="maxiter must be an integer >= 1"):
+        lb.critical_inner_radius(1.0, 0.01, maxiter=0)

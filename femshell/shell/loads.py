@@ -46,13 +46,46 @@ def lumped_vertex_forces(mesh, traction_per_area):
     return f
 
 
+def _magnitude(name, value) -> float:
+    """One finite number (a pressure, a moment per length), or a ValueError naming it."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be one finite number, got {value!r}") from None
+    if not np.isfinite(v):
+        raise ValueError(f"{name} must be one finite number, got {value!r}")
+    return v
+
+
+def _vector3(name, value, n_rows=None) -> np.ndarray:
+    """A finite 3-vector (or, with ``n_rows``, one per row: shape (n_rows, 3)), or a ValueError naming it."""
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        v = None
+    shapes = [(3,)] + ([(n_rows, 3)] if n_rows is not None else [])
+    if v is None or v.shape not in shapes or not np.all(np.isfinite(v)):
+        want = " or ".join(str(s) for s in shapes)
+        raise ValueError(f"{name} must be finite numbers of shape {want}, got {value!r}"[:300])
+    return v
+
+
 @dataclass
 class DeadLoad:
     """A fixed force per vertex, (n, 3): the base of all dead loads."""
 
     forces: np.ndarray
 
+    def __post_init__(self):
+        f = np.asarray(self.forces, dtype=float)
+        if f.ndim != 2 or f.shape[1] != 3 or not np.all(np.isfinite(f)):
+            raise ValueError(f"forces must be finite numbers of shape (n_vertices, 3), got shape {f.shape}"
+                             + ("" if f.ndim != 2 or f.shape[1] != 3 else " with NaN or infinity"))
+
     def setup(self, model):
+        if len(self.forces) != model.mesh.n_vertices:
+            raise ValueError(f"dead load has forces for {len(self.forces)} vertices, the mesh has "
+                             f"{model.mesh.n_vertices}")
         self._f = np.zeros(model.n_total)
         self._f[: 3 * model.mesh.n_vertices] = np.asarray(self.forces, float).ravel()
 
@@ -81,12 +114,13 @@ def PointForce(mesh, vertices, force) -> DeadLoad:
 
 
 def AreaLoad(mesh, traction) -> DeadLoad:
-    """Force per unit rest area, e.g. gravity (0, 0, -q)."""
-    return DeadLoad(lumped_vertex_forces(mesh, traction))
+    """Force per unit rest area, e.g. gravity (0, 0, -q): (3,), or (m, 3) one per triangle."""
+    return DeadLoad(lumped_vertex_forces(mesh, _vector3("traction", traction, mesh.n_triangles)))
 
 
 def DeadPressure(mesh, pressure) -> DeadLoad:
     """Pressure p along the rest normals (does not rotate with the shell)."""
+    pressure = _magnitude("pressure", pressure)
     av = _area_vectors(mesh.points, mesh.triangles)
     f = np.zeros((mesh.n_vertices, 3))
     for k in range(3):
@@ -99,7 +133,7 @@ def EdgeForce(mesh, curve, force_per_length) -> DeadLoad:
     edges = mesh.topology.edges[_curve_edges(mesh, curve)]
     length = np.linalg.norm(mesh.points[edges[:, 1]] - mesh.points[edges[:, 0]], axis=1)
     f = np.zeros((mesh.n_vertices, 3))
-    g = np.outer(length / 2.0, np.asarray(force_per_length, float))
+    g = np.outer(length / 2.0, _vector3("force_per_length", force_per_length))
     np.add.at(f, edges[:, 0], g)
     np.add.at(f, edges[:, 1], g)
     return DeadLoad(f)
@@ -118,6 +152,9 @@ class FollowerPressure:
     """Pressure p > 0 pushing along the current outward normal: W = p V(x)."""
 
     pressure: float
+
+    def __post_init__(self):
+        self.pressure = _magnitude("pressure", self.pressure)
 
     def setup(self, model):
         tri = model.mesh.triangles
@@ -161,6 +198,9 @@ class EdgeMoment:
 
     curve: str
     moment: float
+
+    def __post_init__(self):
+        self.moment = _magnitude("moment", self.moment)
 
     def setup(self, model):
         t = model.mesh.topology

@@ -270,8 +270,8 @@ def _disk_test_rows(resolution, full):
     tag = f" (graded mesh, res {resolution})"
     cr = critical_inner_radius(DISK_R1, 2.0, g0=DISK_EPS, nu=DISK_NU, resolution=resolution, R2_start=1.2,
                                rtol=1e-3 if full else 5e-3)
-    rows.append(Row(f"disk h=2: onset R2 of first linear mode, root-found{tag}", cr.R2, None, None,
-                    cr.n_vertices, cr.wall_s))
+    rows.append(Row(f"disk h=2: onset R2 of first linear mode, root-found{tag}",
+                    cr.R2 if cr.converged else float("nan"), None, None, cr.n_vertices, cr.wall_s))
     rows.append(Row(f"disk h=2: n of first linear mode{tag}", cr.n, None, None, cr.n_vertices, cr.wall_s))
     if not full:
         cg = critical_growth_strain(DISK_R1, 2.0, 2.0, g0=DISK_EPS, nu=DISK_NU, resolution=resolution, k=32)
