@@ -166,3 +166,13 @@ def test_load_magnitudes(small_disk):
         with pytest.raises(ValueError, match=words):
             make()
     assert AreaLoad(m, np.tile([0.0, 0.0, -1.0], (m.n_triangles, 1))).forces[:, 2].sum() < 0   # per triangle
+
+
+def test_load_parameter_needs_loads(small_disk):
+    from femshell.solvers.continuation import LoadParameter
+
+    m = small_disk
+    model = ShellModel(m, Material(), flat_rest_state(m.points, m.triangles, 0.01), [Clamped("outer")])
+    with pytest.raises(ValueError, match="LoadParameter needs a model with loads"):
+        LoadParameter(model)
+    assert not model.load_gradient(model.initial_unknowns()).any()

@@ -224,6 +224,39 @@ def test_stops_at_ds_min_with_a_message():
     assert 0.4 < b.rows[-1]["parameter"] <= 0.5
 
 
+def test_a_parameter_the_problem_refuses_is_a_failed_step_and_the_branch_is_kept():
+    class Bounded(Pitchfork):          # as a growth strain below -1: set_parameter raises
+        def set_parameter(self, lam):
+            if lam < -0.5:
+                raise ValueError(f"lam must be >= -0.5, got {lam}")
+            super().set_parameter(lam)
+
+    b = continuation(Bounded(), np.zeros(2), 0.0, ds=0.1, ds_min=1e-3, direction=-1, detect=False, log=None)
+    assert b.status == "ds_min" and "refused parameter" in b.message
+    assert -0.5 <= b.rows[-1]["parameter"] < -0.45 and len(b.rows) > 4
+
+
+def test_options_and_callbacks():
+    def follow(**kw):
+        return continuation(Pitchfork(), np.zeros(2), 0.0, ds=0.1, detect=False, log=None, **kw)
+
+    for kw, words in (({"grow": np.nan}, "grow must be a number"), ({"grow": 0.5}, "grow must be"),
+                      ({"n_eigs": 10**6}, r"n_eigs must be an integer in \[0, 1000\]"),
+                      ({"max_steps": 2.5}, "max_steps must be an integer"),
+                      ({"max_corrector_iterations": -1}, "max_corrector_iterations"),
+                      ({"lam_stop": 0.0}, "is the start's parameter")):
+        with pytest.raises(ValueError, match=words):
+            follow(**kw)
+    said = []
+    b = continuation(Pitchfork(), np.zeros(2), 0.0, ds=0.1, detect=False, log=said.append, lam_stop=-1.0,
+                     max_steps=3)
+    assert b.status == "max_steps" and any("behind the start" in line for line in said)
+    b = follow(lam_stop=5.0, callback=lambda br, row: np.bool_(row["parameter"] > 0.3))   # a numpy bool stops
+    assert b.status == "callback" and b.rows[-1]["parameter"] < 1.0
+    with pytest.raises(ValueError, match="column.*parameter.*already has"):
+        follow(max_steps=2, record=lambda u: {"parameter": 42.0})
+
+
 def test_bad_start_raises():
     class Nowhere(Pitchfork):
         def gradient(self, u):

@@ -228,6 +228,10 @@ class Progress:
         if not self.quiet:
             print(text, file=self.out, flush=True)
 
+    def failure(self, text):
+        """A failed run is said even when quiet (then on stderr): its exit code alone does not say why."""
+        print(text, file=sys.stderr if self.quiet else self.out, flush=True)
+
     def step(self, text, fraction=None, force=False):
         now = self.elapsed
         if fraction is not None and math.isfinite(fraction):
@@ -473,6 +477,9 @@ class BaseRunner:
         lines += [f"  {line}" for line in self.report_lines(fin)]
         lines.append(f"  outputs in {self.rd.path}/: {SERIES}.pvd ({len(self.writer)} frames), summary.json, "
                      f"{CHECKPOINT}" + (", pictures/" if (self.rd.path / "pictures").is_dir() else ""))
+        if code == 1:
+            self.p.failure(lines[0])
+            lines = lines[1:]
         for line in lines:
             self.p.say(line)
 
@@ -1312,7 +1319,7 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
             runner = RUNNERS[sc.kind](sc, mesh, rd, progress=progress, max_steps=max_steps, verbose=verbose)
             return runner.run(resume_from)
         except StepFailure as exc:          # the initial state could not be made: nothing to checkpoint
-            progress.say(f"failed: {exc}")
+            progress.failure(f"failed: {exc}")
             if overwrite:
                 rd.put_back()
                 progress.say(f"the earlier run in {rd.path}/ is kept")

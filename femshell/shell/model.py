@@ -306,7 +306,7 @@ class ShellModel:
     def load_gradient(self, u) -> np.ndarray:
         """∂W/∂u: minus the derivative of the residual with respect to the load factor."""
         q = self.full(u)
-        return sum(load.gradient(q) for load in self.loads)[self.free]
+        return sum((load.gradient(q) for load in self.loads), np.zeros(self.n_total))[self.free]
 
     def hessian(self, u):
         """∂²Π/∂u² as a CSR matrix over the free unknowns (symmetric, possibly indefinite)."""

@@ -200,6 +200,12 @@ class LoadParameter(_ModelAdapter):
     arclength norm; ``parameter_scale`` (default 1) is the scale of λ.
     """
 
+    def __init__(self, model, **kw):
+        if not getattr(model, "loads", None):
+            raise ValueError("LoadParameter needs a model with loads: the load factor scales them, and this "
+                             "model has none (GrowthParameter follows a growth instead)")
+        super().__init__(model, **kw)
+
     def set_parameter(self, lam):
         self.model.load_factor = float(lam)
 
@@ -471,7 +477,11 @@ class _Engine:
     # ---- problem access
     def set(self, lam):
         if lam != self._lam:
-            self.p.set_parameter(lam)
+            try:
+                self.p.set_parameter(lam)
+            except ValueError as exc:   # outside the parameter's range (a growth strain <= -1): a failed step
+                self._lam = None
+                raise _StepFailure(f"the problem refused parameter {lam:.9g}: {exc}") from None
             self._lam = lam
 
     def residual(self, u, lam):
@@ -482,7 +492,11 @@ class _Engine:
     def dlam(self, u, lam):
         self.set(lam)
         if hasattr(self.p, "parameter_derivative"):
-            return np.asarray(self.p.parameter_derivative(u), float)
+            try:
+                return np.asarray(self.p.parameter_derivative(u), float)
+            except ValueError as exc:   # its difference step left the parameter's range
+                self._lam = None        # the problem's parameter may be left at the refused value
+                raise _StepFailure(f"∂r/∂λ at parameter {lam:.9g}: {exc}") from None
         h = self.fd_step * max(abs(lam), self.lam_scale)
         gp = self.residual(u, lam + h)
         gm = self.residual(u, lam - h)
@@ -750,7 +764,7 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     direction : +1 / -1: initial sense of λ (ignored with ``initial_tangent``).
     record : ``record(u) -> dict`` of extra columns (norms, point values); default:
         ``{"norm": weighted RMS norm of u}``.
-    callback : ``callback(branch, row)`` after each accepted step; returning True stops.
+    callback : ``callback(branch, row)`` after each accepted step; returning a true value stops.
     detect : locate folds, branch points and dips (needs ``n_eigs`` ≥ 1 for dips).
     n_eigs : eigenvalues of smallest magnitude recorded per step, ascending (0: none; the
         inertia, i.e. the number of negative eigenvalues, is always recorded).
@@ -791,6 +805,17 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
         raise ValueError(f"need 0 < ds_min <= ds <= ds_max < inf, got {ds_min}, {ds}, {ds_max}")
     if direction not in (1, -1):
         raise ValueError(f"direction must be +1 or -1, got {direction}")
+    for name, v, lo, hi in (("grow", grow, 1.0, 100.0), ("max_turn_deg", max_turn_deg, 1e-6, 180.0),
+                            ("rtol", rtol, 0.0, 1.0), ("atol", atol, 0.0, math.inf), ("xtol", xtol, 0.0, 1.0),
+                            ("locate_tol", locate_tol, 0.0, math.inf), ("fd_step", fd_step, 1e-14, 0.1)):
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and lo <= v <= hi and not math.isnan(v)):
+            raise ValueError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
+    for name, v, lo, hi in (("max_steps", max_steps, 0, 10**7), ("n_eigs", n_eigs, 0, 1000),
+                            ("max_corrector_iterations", max_corrector_iterations, 1, 1000),
+                            ("fast_iterations", fast_iterations, 0, 1000)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+            raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+    n_eigs = min(n_eigs, n)   # a table column per eigenvalue: no more than there are
     bad = set(stop_at) - {"fold", "branch"}
     if bad:
         raise ValueError(f"stop_at kinds must be among 'fold', 'branch', got {sorted(bad)}")
@@ -829,6 +854,14 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     except _StepFailure as exc:
         eng.release()
         raise ContinuationError(f"the first point at parameter {lam0:.6g} did not converge: {exc}") from None
+
+    if lam_stop is not None:
+        if abs(lam_stop - A.lam) <= 1e-12 * max(abs(lam_stop), parameter_scale):
+            eng.release()
+            raise ValueError(f"lam_stop = {lam_stop:.9g} is the start's parameter: nothing to follow")
+        if (lam_stop - A.lam) * A.t_lam < 0 and log:
+            log(f"  continuation '{label}': lam_stop = {lam_stop:.9g} lies behind the start ({A.lam:.9g}) in the "
+                "branch's direction: reached only after a fold (direction=-1 goes there directly)")
 
     ctx = _Context(eng, branch, record, keep_states, n_eigs, locate_tol, cluster_tol, dip_tol, log, t_start)
     ctx.add_row(A, 0.0, 0, ds=0.0)
@@ -892,7 +925,7 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
                     f"dλ/ds {B.t_lam:+.3g}  n_neg {B.n_negative}{ev}")
             history = (history + [(B, s)])[-3:]
             A = B
-            if callback is not None and callback(branch, branch.rows[-1]) is True:
+            if callback is not None and bool(callback(branch, branch.rows[-1])):   # np.True_ and 1 stop too
                 stop = ("callback", "the callback asked to stop")
                 break
             if landed:
@@ -956,6 +989,11 @@ class _Context:
         row.update({"dlam_ds": P.t_lam, "ds": ds, "iterations": P.iterations, "special": special,
                     "branch": self.branch.label, "wall_s": time.perf_counter() - self.t0})
         extra = self.record(P.u) or {}
+        if not isinstance(extra, dict):
+            raise TypeError(f"record(u) must return a dict of columns, got {type(extra).__name__}")
+        clash = sorted(set(extra) & set(row))
+        if clash:
+            raise ValueError(f"record(u) returned column(s) {', '.join(clash)} that the branch table already has")
         row.update({k: (float(v) if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
                         else v) for k, v in extra.items()})
         self.branch.rows.append(row)
