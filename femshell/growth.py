@@ -35,6 +35,9 @@ THICKNESS_MODES = ("volume", "uniform")
 
 
 def _check_params(lam_max, lam_min, b, c_star):
+    for name, v in (("lam_max", lam_max), ("lam_min", lam_min), ("b", b), ("c_star", c_star)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+            raise ValueError(f"{name} must be one number, got {v!r}"[:200])
     if not np.isfinite(c_star):
         raise ValueError(f"c_star (c*, the threshold concentration) must be a finite number, got {c_star}")
     if not (np.isfinite(lam_min) and lam_min > 0):
@@ -98,6 +101,7 @@ def stretch(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: float 
     >>> float(stretch(-1e3, b=1000)), float(stretch(1e3, b=1000))
     (1.0, 1.5)
     """
+    _check_params(lam_max, lam_min, b, c_star)
     lam0 = lam_max if lam0 is None else lam0
     if not (np.isfinite(lam0) and lam0 > 0):
         raise ValueError(f"lam0 (Λ0, the reference contractility) must be a finite number > 0, got {lam0}")
@@ -119,6 +123,7 @@ def dstretch_dc(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: fl
     >>> float(dstretch_dc(0.1))      # b (Λmax − Λmin) / 4 · Λmax / 12.5² at c = c*
     12.0
     """
+    _check_params(lam_max, lam_min, b, c_star)
     lam0 = lam_max if lam0 is None else lam0
     if not (np.isfinite(lam0) and lam0 > 0):
         raise ValueError(f"lam0 (Λ0, the reference contractility) must be a finite number > 0, got {lam0}")
@@ -146,10 +151,10 @@ def element_average(c_vertices, triangles):
     >>> element_average(np.array([0.0, 3.0, 6.0, 9.0]), np.array([[0, 1, 2], [1, 2, 3]]))
     array([3., 6.])
     """
-    c = np.asarray(c_vertices, dtype=float)
+    c = _as_finite(c_vertices, "vertex values")
     tri = np.asarray(triangles)
-    if tri.ndim != 2 or tri.shape[1] != 3:
-        raise ValueError(f"triangles must have shape (m, 3), got {tri.shape}")
+    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.dtype.kind not in "iu"):
+        raise ValueError(f"triangles must be integers of shape (m, 3), got {tri.dtype} {tri.shape}")
     if tri.size and (tri.min() < 0 or tri.max() >= len(c)):
         raise ValueError(f"triangles index vertices 0..{tri.max()} but only {len(c)} vertex values were given")
     return c[tri].mean(axis=1)
@@ -247,4 +252,6 @@ def _check_stretch(s, m):
         raise ValueError(f"stretch s must be a scalar or have shape ({m},), got {s.shape}")
     if np.any(s <= 0):
         raise ValueError(f"stretch s must be > 0, got min {s.min()}")
+    if np.any((s < 1e-100) | (s > 1e100)):   # s² and h/s² stay representable
+        raise ValueError(f"stretch s must be in [1e-100, 1e100], got {s.min():.3g} to {s.max():.3g}")
     return np.broadcast_to(s, (m,)) if (s.ndim == 0 and m is not None) else s

@@ -176,3 +176,54 @@ def test_load_parameter_needs_loads(small_disk):
     with pytest.raises(ValueError, match="LoadParameter needs a model with loads"):
         LoadParameter(model)
     assert not model.load_gradient(model.initial_unknowns()).any()
+
+
+def test_contradictory_or_malformed_boundary_conditions(small_disk):
+    from femshell.shell import Prescribed, SimplySupported
+
+    m = small_disk
+    rest = flat_rest_state(m.points, m.triangles, 0.01)
+    for bcs, words in (([Prescribed("outer", displacement=(0, 0, 0.1)), Prescribed("outer", displacement=(0, 0, -0.1))],
+                        "prescribes component z of vertex .* as -0.1, but an earlier .* fixed it at 0.1"),
+                       ([Clamped("outer"), Prescribed("outer", displacement=(0, 0, 0.1))], "contradictory"),
+                       ([Prescribed(vertices=(-1,))], r"indices in \[0, "),
+                       ([Prescribed("outer", displacement=(0, 0.1))], "displacement must be 3 finite numbers")):
+        with pytest.raises(ValueError, match=words):
+            ShellModel(m, Material(), rest, bcs)
+    ShellModel(m, Material(), rest, [Clamped("outer"), SimplySupported("outer"), Prescribed("outer")])  # agree
+
+
+def test_model_lists_and_branch_csv_path(small_disk, tmp_path):
+    from femshell.solvers.continuation import LoadParameter, continuation
+    from femshell.shell import DeadPressure
+
+    m = small_disk
+    rest = flat_rest_state(m.points, m.triangles, 0.01)
+    with pytest.raises(TypeError, match=r"boundary_conditions must be a list, got Clamped \(write \[Clamped"):
+        ShellModel(m, Material(), rest, Clamped("outer"))
+    with pytest.raises(TypeError, match="loads holds a float, not a femshell load"):
+        ShellModel(m, Material(), rest, [Clamped("outer")], [1e-6])
+    model = ShellModel(m, Material(), rest, [Clamped("outer")], [DeadPressure(m, 1e-6)])
+    b = continuation(LoadParameter(model), model.initial_unknowns(), 0.0, ds=0.5, max_steps=1, n_eigs=0,
+                     detect=False, log=None)
+    with pytest.raises(ValueError, match="is a directory"):
+        b.to_csv(tmp_path)
+
+
+def test_growth_numbers(small_disk):
+    from femshell.growth import element_average, stretch, target_metric, target_thickness
+    from femshell.shell import uniform_growth
+
+    m = small_disk
+    for strain, words in ((np.full(m.n_triangles, 0.1), "got array"), (np.nan, "got nan"), (1e200, "got 1e")):
+        with pytest.raises(ValueError, match=f"growth strain must be one number in .*{words}"):
+            uniform_growth(m.points, m.triangles, 0.01, strain)
+    assert uniform_growth(m.points, m.triangles, 0.01, np.asarray(0.1)).thickness.shape == (m.n_triangles,)
+    with pytest.raises(ValueError, match=r"stretch s must be in \[1e-100, 1e100\]"):
+        target_metric(np.broadcast_to(np.eye(2), (2, 2, 2)), np.array([1.0, 1e200]))
+    with pytest.raises(ValueError, match=r"stretch s must be in \[1e-100, 1e100\]"):
+        target_thickness(0.01, 1e200)
+    with pytest.raises(ValueError, match="vertex values has 1 non-finite"):
+        element_average(np.array([0.0, np.nan, 1.0]), np.array([[0, 1, 2]]))
+    with pytest.raises(ValueError, match="lam_max must be one number"):
+        stretch(0.1, lam_max=np.array([15.0, 16.0]))

@@ -45,14 +45,27 @@ def _curve_edges(mesh, curve):
     return groups[curve]
 
 
+def _fix(fixed, values, rows, cols, new, what):
+    """Fix ``values[rows, cols] = new``; a component an earlier condition fixed to another value is an error."""
+    idx = np.ix_(rows, cols)
+    # within the symmetry planes' tolerance (1e-8 of the mesh size): a clamped vertex on a plane agrees
+    clash = fixed[idx] & ~np.isclose(values[idx], new, rtol=0.0, atol=1e-8 * max(np.ptp(values, axis=0).max(), 1e-300))
+    if clash.any():
+        r, c = np.argwhere(clash)[0]
+        raise ValueError(f"{what} prescribes component {'xyz'[cols[c]]} of vertex {rows[r]} as "
+                         f"{np.broadcast_to(new, clash.shape)[r, c]:.6g}, but an earlier boundary condition "
+                         f"fixed it at {values[idx][r, c]:.6g}: contradictory boundary conditions")
+    fixed[idx] = True
+    values[idx] = new
+
+
 @dataclass(frozen=True)
 class Clamped:
     curve: str
 
     def apply(self, mesh, fixed, values, edge_kind, edge_direction):
         v = _curve_vertices(mesh, self.curve)
-        fixed[v] = True
-        values[v] = mesh.points[v]
+        _fix(fixed, values, v, [0, 1, 2], mesh.points[v], f"Clamped('{self.curve}')")
         edge_kind[_curve_edges(mesh, self.curve)] = CLAMPED
 
 
@@ -62,8 +75,7 @@ class SimplySupported:
 
     def apply(self, mesh, fixed, values, edge_kind, edge_direction):
         v = _curve_vertices(mesh, self.curve)
-        fixed[v] = True
-        values[v] = mesh.points[v]
+        _fix(fixed, values, v, [0, 1, 2], mesh.points[v], f"SimplySupported('{self.curve}')")
 
 
 @dataclass(frozen=True)
@@ -82,8 +94,8 @@ class Symmetry:
         on = np.abs(mesh.points[:, i] - self.value) <= self.tol * size
         if not on.any():
             raise ValueError(f"no mesh vertex lies on the symmetry plane {self.axis} = {self.value}")
-        fixed[on, i] = True
-        values[on, i] = self.value
+        _fix(fixed, values, np.flatnonzero(on), [i], np.full((int(on.sum()), 1), float(self.value)),
+             f"Symmetry('{self.axis}', {self.value:g})")
         t = mesh.topology
         be = t.boundary_edges
         on_plane = be[on[t.edges[be]].all(axis=1)]
@@ -103,13 +115,21 @@ class Prescribed:
     def apply(self, mesh, fixed, values, edge_kind, edge_direction):
         if (self.curve is None) == (self.vertices is None):
             raise ValueError("Prescribed needs exactly one of 'curve' or 'vertices'")
-        v = _curve_vertices(mesh, self.curve) if self.curve is not None else np.asarray(self.vertices, int)
+        if self.curve is not None:
+            v = _curve_vertices(mesh, self.curve)
+        else:
+            v = np.atleast_1d(np.asarray(self.vertices))
+            if v.dtype.kind not in "iu" or v.ndim != 1 or np.any((v < 0) | (v >= mesh.n_vertices)):
+                raise ValueError(f"Prescribed vertices must be indices in [0, {mesh.n_vertices - 1}], "
+                                 f"got {self.vertices!r}")
         comps = list(self.components)
         if not set(comps) <= {0, 1, 2}:
             raise ValueError(f"components must be among 0, 1, 2, got {comps}")
         u = np.zeros(3) if self.displacement is None else np.asarray(self.displacement, float)
-        fixed[np.ix_(v, comps)] = True
-        values[np.ix_(v, comps)] = mesh.points[np.ix_(v, comps)] + u[comps]
+        if u.shape != (3,) or not np.all(np.isfinite(u)):
+            raise ValueError(f"displacement must be 3 finite numbers (x, y, z), got {self.displacement!r}")
+        what = f"Prescribed({self.curve!r})" if self.curve is not None else "Prescribed(vertices=...)"
+        _fix(fixed, values, v, comps, mesh.points[np.ix_(v, comps)] + u[comps], what)
 
 
 def rigid_body_pins(points: np.ndarray) -> list[tuple[int, int]]:

@@ -179,6 +179,13 @@ class ShellModel:
         for name, value, kind in (("material", material, Material), ("rest", rest, RestState)):
             if not isinstance(value, kind):
                 raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+        for name, items, method in (("boundary_conditions", boundary_conditions, "apply"), ("loads", loads, "setup")):
+            if not isinstance(items, (list, tuple)):
+                raise TypeError(f"{name} must be a list, got {type(items).__name__} (write [{type(items).__name__}(...)])")
+            for item in items:
+                if not hasattr(item, method):
+                    raise TypeError(f"{name} holds a {type(item).__name__}, not a femshell "
+                                    f"{'boundary condition' if method == 'apply' else 'load'}")
         self.mesh = mesh
         self.material = material
         self.topology = t = mesh.topology

@@ -11,6 +11,7 @@ has ``ā = (1 + g)^2 ā0`` (:func:`uniform_growth`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,9 +82,13 @@ def uniform_growth(points, triangles, thickness, strain: float, k0: float = 0.0,
 
     With ``volume_conserving`` the thickness becomes h / s² (design.md 1.1).
     """
-    s = 1.0 + strain
-    if s <= 0:
-        raise ValueError(f"growth strain must be > -1, got {strain}")
+    try:
+        g = float(strain) if np.ndim(strain) == 0 and not isinstance(strain, (bool, str)) else math.nan
+    except (TypeError, ValueError):
+        g = math.nan
+    if not -1.0 < g <= 1e100:
+        raise ValueError(f"growth strain must be one number in (-1, 1e100], got {strain!r}"[:200])
+    s = 1.0 + g
     a0 = metric(np.asarray(points, float), np.asarray(triangles))
     h = np.asarray(thickness, float) / (s**2 if volume_conserving else 1.0)
     return RestState(s**2 * a0, k0 * s**2 * a0, h)

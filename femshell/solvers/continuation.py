@@ -416,6 +416,8 @@ def _json_float(x):
 
 
 def _atomic_text(path: Path, text: str):
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory; cannot write a file there")
     # open(..., "x") rather than mkstemp: the file gets the user's umask, not mode 0600
     tmp = path.with_name(f".{path.name}.{os.getpid()}-{os.urandom(4).hex()}.tmp")
     try:

@@ -113,8 +113,14 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         cut its step (a time stepping) gains from stopping early; None: never.
     """
     u = check_unknowns(problem, u0)
-    if int(max_iter) < 0:
-        raise ValueError(f"max_iter must be >= 0, got {max_iter}")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
+        raise ValueError(f"max_iter must be an integer >= 0, got {max_iter!r}")
+    if stall not in (None, False) and (not isinstance(stall, (int, np.integer)) or stall < 1):
+        raise ValueError(f"stall must be an integer >= 1 (or None/False: never), got {stall!r}")
+    for name, v in (("rtol", rtol), ("atol", atol)) + ((("residual_scale", residual_scale),)
+                                                      if residual_scale is not None else ()):
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
     if max_step is not None and not (max_step > 0):
         raise ValueError(f"max_step must be > 0 (or None), got {max_step}")
     times = {"assembly": 0.0, "factorize": 0.0, "solve": 0.0, "line_search": 0.0}
