@@ -6,7 +6,8 @@ Output directory ``DIR`` (``--out``, default ``./<scene name>-out``)::
     series.pvd          ParaView time series; one series_NNNNNN.vtu per frame
     checkpoint.npz      the last accepted state (+ checkpoint.npz.prev, the one before)
     summary.json        scene, parameters, status, steps, wall time, final measures
-    pictures/           top.png (coloured by c or |displacement|), side.png (by radius),
+    pictures/           top.png (coloured by c or |displacement|), side.png (by radius; for a
+                        shell that was flat an oblique view coloured like top.png),
                         bifurcation.png (continuation)
     branch.csv          continuation only: one row per accepted and special point
     special/            continuation only: the special points with their critical modes
@@ -26,8 +27,9 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
   "interrupted" (exit code 130).
 * ``--resume`` continues from the checkpoint; frames written after it are dropped and
   written again. The scene must be the one in ``DIR/scene.toml`` except for
-  ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop`` and
-  ``solver.switch_stop`` (so a finished run can be extended). For the time loop and the
+  ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop``,
+  ``solver.switch_stop``, ``solver.stationary_pattern_time`` and
+  ``solver.stationary_pattern_tol`` (so a finished run can be extended). For the time loop and the
   static solver the resumed run is bit for bit the uninterrupted one; a continuation
   restarts its branch from the last accepted point along the secant (same branch, not the
   same steps).

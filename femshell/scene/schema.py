@@ -233,8 +233,7 @@ SECTIONS = {
 NEWTON = {
     "newton_rtol": Spec(F, None, "Newton tolerance relative to the residual scale", **POS),
     "newton_max_iter": Spec(I, None, "Newton iterations per solve", lo=1),
-    "backend": Spec(S, "auto", "sparse linear solver back-end", choices=("auto", "pardiso", "cholmod", "splu",
-                                                                        "scipy", "superlu")),
+    "backend": Spec(S, "auto", "sparse linear solver back-end", choices=("auto", "pardiso", "superlu")),
 }
 
 SOLVER_KEYS = {

@@ -4,7 +4,7 @@ Solvers know energies and derivatives, not physics (design.md 2). The object fol
 **parametrized problem**: anything with
 
 ``set_parameter(lam)``
-    make ``lam`` the current parameter value;
+    make ``lam`` the current parameter value (a ValueError outside its range is a failed step);
 ``energy(u)``, ``gradient(u)``, ``hessian(u)``
     Π, r = ∂Π/∂u and K = ∂²Π/∂u² (scipy sparse, symmetric) at the current parameter;
 
@@ -50,8 +50,9 @@ L = mesh size a post-buckled branch is so steep in this norm (λ changes by O(1)
   with SuperLU instead.
 * **Step control**: ds grows by ``grow`` after a corrector that converged in at most
   ``fast_iterations`` iterations, and is halved after a failure (no convergence, divergence,
-  a corrector that moved more than ``ds`` from the predictor, or a tangent that turned by
-  more than ``max_turn_deg``). Below ``ds_min`` the continuation stops with a message
+  a corrector that moved more than ``ds`` from the predictor, a tangent that turned by
+  more than ``max_turn_deg``, or a parameter value the problem refuses: a ValueError from
+  ``set_parameter`` or ``parameter_derivative``, e.g. a growth strain <= -1). Below ``ds_min`` the continuation stops with a message
   (``Branch.status == "ds_min"``).
 * **Stability** at every accepted point: the inertia of K (symmetric-indefinite LDLᵀ,
   Sylvester's law) gives the number of negative eigenvalues; the ``n_eigs`` eigenvalues
@@ -77,7 +78,7 @@ L = mesh size a post-buckled branch is so steep in this norm (λ changes by O(1)
   modes cos nθ, sin nθ of a disk count as one double branch point.
 * **Stopping**: ``lam_stop`` (the last point is placed exactly on it by a corrector at
   fixed λ), ``max_steps``, a fold or branch point (``stop_at``), ``ds_min``, or
-  ``callback`` returning True.
+  ``callback`` returning a true value.
 
 :func:`switch_branch` starts a new branch at a branch point from (u*, λ*) + a·t_new, t_new the
 chosen critical mode (or combination of modes) made W-orthogonal to the old tangent, and

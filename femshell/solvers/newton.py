@@ -12,7 +12,9 @@ The solver knows a *problem*: any object with ``energy(u)``, ``gradient(u)`` and
    it is positive definite (a Levenberg–Marquardt step: always a descent direction);
 3. backtracking line search on :math:`\Pi` (Armijo), falling back to the residual
    norm when energy differences reach round-off;
-4. converged when :math:`\|\nabla\Pi\| \le` ``rtol`` × scale + ``atol``, or when the
+4. converged when :math:`\|\nabla\Pi\| \le` ``rtol`` × scale + ``atol``, or below
+   ε √n max|K_ij| max|u|, what float64 resolves at u (so a start that is already the
+   equilibrium, with nothing to scale the tolerance, converges at once), or when the
    Newton step's predicted decrease of Π falls below float64 resolution of Π (the
    residual's round-off floor: nothing can be gained by iterating);
 5. with ``stable=True`` a converged point (or one at the round-off floor) whose Hessian
