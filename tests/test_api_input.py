@@ -227,3 +227,14 @@ def test_growth_numbers(small_disk):
         element_average(np.array([0.0, np.nan, 1.0]), np.array([[0, 1, 2]]))
     with pytest.raises(ValueError, match="lam_max must be one number"):
         stretch(0.1, lam_max=np.array([15.0, 16.0]))
+
+
+def test_growth_parameter_difference_step(small_disk):
+    from femshell.shell import uniform_growth
+    from femshell.solvers.continuation import GrowthParameter
+
+    m = small_disk
+    model = ShellModel(m, Material(), uniform_growth(m.points, m.triangles, 0.01, 0.0), [Clamped("outer")])
+    for step in (0.0, np.nan, 1.0):
+        with pytest.raises(ValueError, match=r"fd_step must be in \[1e-14, 0.1\]"):
+            GrowthParameter(model, lambda g: uniform_growth(m.points, m.triangles, 0.01, g), fd_step=step)

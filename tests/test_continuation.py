@@ -144,6 +144,14 @@ def test_pitchfork_is_located_classified_and_switched():
             assert r["stable"] is True                     # supercritical: stable
         assert abs(nb.states[-1][1] - 1.5) < 1e-14
         assert not nb.special_points
+    for kw, words in (({"amplitude": np.nan}, "amplitude must be a finite number != 0"),
+                      ({"amplitude": 0.0}, "amplitude must be"), ({"parameter_scale": 0.0}, "parameter_scale must be")):
+        with pytest.raises(ValueError, match=words):
+            switch_branch(Pitchfork(), bp, log=None, **kw)
+    with pytest.raises(TypeError, match="special_point must be a SpecialPoint .* got Branch"):
+        switch_branch(Pitchfork(), b, log=None)
+    with pytest.raises(ValueError, match="initial_tangent must be"):
+        continuation(Pitchfork(), np.zeros(2), 0.0, ds=0.1, initial_tangent=(np.zeros(2), 0.0), log=None)
 
 
 def test_double_branch_point_multiplicity_and_mode_combinations():

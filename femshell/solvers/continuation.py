@@ -231,6 +231,8 @@ class GrowthParameter(_ModelAdapter):
         super().__init__(model, length_scale=length_scale, parameter_scale=parameter_scale)
         self.rest_of = rest_of
         self.fd_step = float(fd_step)
+        if not 1e-14 <= self.fd_step <= 0.1:
+            raise ValueError(f"fd_step must be in [1e-14, 0.1] (relative difference step in λ), got {fd_step}")
         self._lam = None
 
     def set_parameter(self, lam):
@@ -850,7 +852,10 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
         else:
             t0u = np.asarray(initial_tangent[0], float)
             t0l = float(initial_tangent[1])
-            nt = eng.norm(t0u, t0l)
+            nt = eng.norm(t0u, t0l) if t0u.shape == (n,) else math.nan
+            if not (math.isfinite(nt) and nt > 0):
+                eng.release()
+                raise ValueError(f"initial_tangent must be (t_u of {n} unknowns, t_λ), finite and not zero")
             t0 = (t0u / nt, t0l / nt)
             A = eng.correct(u0, lam0, t=t0, update_scale=False)
             A = eng.finish(A, t0)
@@ -1314,6 +1319,8 @@ def switch_branch(problem, special_point: SpecialPoint, mode=None, amplitude=Non
     through that start, so it cannot fall back onto the old branch near u*.
     """
     p = special_point
+    if not isinstance(p, SpecialPoint):
+        raise TypeError(f"special_point must be a SpecialPoint (from branch.special_points), got {type(p).__name__}")
     if p.kind not in ("branch", "possible_branch"):
         raise ValueError(f"branch switching needs a branch point, got a {p.kind!r} point "
                          f"(at a fold the branch turns; continue through it instead)")
@@ -1339,6 +1346,8 @@ def switch_branch(problem, special_point: SpecialPoint, mode=None, amplitude=Non
         weights = problem.dof_weights() if hasattr(problem, "dof_weights") else np.ones(n)
     weights = np.broadcast_to(np.asarray(weights, float), (n,))
     lam_scale = options.pop("parameter_scale", p.parameter_scale)
+    if not (np.isfinite(lam_scale) and lam_scale > 0):
+        raise ValueError(f"parameter_scale must be a finite number > 0, got {lam_scale}")
     wl = 1.0 / lam_scale**2
 
     def dot(au, al, bu, bl):
@@ -1356,6 +1365,8 @@ def switch_branch(problem, special_point: SpecialPoint, mode=None, amplitude=Non
     if amplitude is None:
         amplitude = ds if ds is not None else 0.1
     a = float(amplitude) * (1.0 if sign >= 0 else -1.0)
+    if not (math.isfinite(a) and a != 0):
+        raise ValueError(f"amplitude must be a finite number != 0 (the jump onto the new branch), got {amplitude}")
     if ds is None:
         ds = abs(a) if a != 0 else 0.1
     s_ = 1.0 if a >= 0 else -1.0
