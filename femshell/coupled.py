@@ -741,14 +741,16 @@ class CoupledLoop:
             self._say(f"  step {self.step} t = {self.t:.6g}: {self.non_elliptic} elements are compressed past the "
                       f"St Venant–Kirchhoff membrane's ellipticity limit (equibiaxial stretch {limit:.3g}): "
                       "a triangle there can collapse on the mesh scale, and Newton then stalls; "
-                      "membrane_law = 'neo-hookean' stays elliptic")
+                      "the neo-Hookean membrane (scene: material.law = \"neo-hookean\"; API: membrane_law) "
+                      "stays elliptic")
 
     def _non_elliptic_hint(self) -> str:
         """Why a step may fail that the user can act on: St Venant–Kirchhoff past its limit."""
         if not self.non_elliptic:
             return ""
         return (f"; {self.non_elliptic} elements of the last accepted state are compressed past the St Venant–"
-                "Kirchhoff ellipticity limit, where triangles can collapse: membrane_law = 'neo-hookean' stays elliptic")
+                "Kirchhoff ellipticity limit, where triangles can collapse: the neo-Hookean membrane "
+                "(scene: material.law = \"neo-hookean\"; API: membrane_law) stays elliptic")
 
     def _residual_floor(self) -> float:
         """atol of Newton: newton_atol_strain × |∇Π| of a uniform unit strain (by a 1e-3 difference)."""

@@ -248,6 +248,10 @@ def test_overwrite_keeps_the_earlier_run_until_the_new_one_starts(tmp_path, monk
         assert run("default", out, extra=["--overwrite"], overrides=["mesh.n_vertices=150"]) == code
         assert _files(out) == before                  # every file of the earlier run, unchanged
         assert not (out / runner.REPLACED).exists()
+    # --overwrite into a directory without an earlier run: the failure is recorded, nothing is "kept"
+    fresh = tmp_path / "fresh"
+    assert run("default", fresh, extra=["--overwrite"], overrides=["mesh.n_vertices=150"]) == 1
+    assert json.loads((fresh / "summary.json").read_text())["status"] == "failed"
     monkeypatch.undo()
     # a run that starts replaces it
     assert run("default", out, extra=["--overwrite"], overrides=["mesh.n_vertices=150", "solver.t_final=0.01"]) == 0
@@ -347,3 +351,11 @@ def test_kill_9_loses_no_finished_step(uninterrupted, tmp_path):
     assert killed_at >= step                 # the checkpoint seen before the kill is still there
     assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
     assert_same_run(uninterrupted, out)
+
+
+def test_unresolved_seed_is_warned_and_negative_c_star_refused(tmp_path, capsys):
+    over = ["mesh.n_vertices=150", "solver.t_final=0.02", "initial.width=1e-3"]
+    assert run("default", tmp_path / "thin", overrides=over) == 0
+    assert "narrower than the mesh resolves" in capsys.readouterr().err
+    assert run("default", tmp_path / "neg", overrides=["mesh.n_vertices=150", "growth.c_star=-0.1"]) == 2
+    assert "c_star" in capsys.readouterr().err

@@ -516,7 +516,30 @@ class TimeRunner(BaseRunner):
         if msg.startswith("initial equilibrium") or (self.verbose and not msg.startswith("step ")):
             self.p.say(f"  {msg.strip()}")
 
+    def _seed_warning(self):
+        """A seed narrower than the mesh resolves leaves c ≈ 0 at every vertex: say so (the run would
+        report a 'decayed' pattern that is only the mesh's)."""
+        from .build import coupled_parameters, initial_concentration
+
+        params, _, _ = coupled_parameters(self.scene)
+        try:
+            c0 = initial_concentration(self.scene, self.mesh, params)
+        except ValueError:
+            return                      # the loop names it
+        if c0 is None:
+            return
+        field = c0.field(np.asarray(self.mesh.points, float), params) if hasattr(c0, "field") else np.asarray(c0)
+        amp = self.scene["initial"].get("amplitude") or params.c_max
+        width = self.scene["initial"].get("width") or params.h0
+        if math.isfinite(amp) and amp > 0 and field.max() < 0.5 * amp:
+            pts, e = np.asarray(self.mesh.points, float), self.mesh.topology.edges
+            edge = float(np.linalg.norm(pts[e[:, 1]] - pts[e[:, 0]], axis=1).mean())
+            self.p.failure(f"warning: the initial spot (width {width:.3g}) is narrower than the mesh resolves (mean edge "
+                           f"{edge:.3g}): its largest vertex value is {field.max() / amp:.2%} of its amplitude; "
+                           "widen it (initial.width) or refine the mesh")
+
     def initialise(self):
+        self._seed_warning()
         self.p.say("initial equilibrium of the grown spot (Newton, growth ramped) ...")
         t = time.perf_counter()
         from ..coupled import CoupledError
@@ -1322,8 +1345,11 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
             return runner.run(resume_from)
         except StepFailure as exc:          # the initial state could not be made: nothing to checkpoint
             progress.failure(f"failed: {exc}")
+            aside = rd.path / REPLACED
+            earlier = overwrite and aside.is_dir() and any(aside.iterdir())
             if overwrite:
                 rd.put_back()
+            if earlier:
                 progress.say(f"the earlier run in {rd.path}/ is kept")
             else:
                 fio.write_summary(rd.path, {"scene": sc.name, "solver": sc.kind, "status": "failed",

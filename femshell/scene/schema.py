@@ -196,7 +196,7 @@ SECTIONS = {
         "lam_min": Spec(F, 10.0, "contractility of saturated tissue, Λmin", **POS),
         "lam0": Spec(F, None, "reference contractility Λ0 of s = Λ0/Λ(c) (default Λmax)", **POS),
         "b": Spec(F, 100.0, "steepness of the contractility switch (1/concentration)", **POS),
-        "c_star": Spec(F, 0.1, "threshold concentration c*"),
+        "c_star": Spec(F, 0.1, "threshold concentration c* (c >= 0, so c* < 0 would pattern everything)", **NONNEG),
     },
     "chemistry": {
         "D": Spec(F, 0.0, "diffusion coefficient (length^2/time)", **NONNEG),

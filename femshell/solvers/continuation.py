@@ -437,6 +437,10 @@ def _atomic_text(path: Path, text: str):
 
 # =============================================================================== engine
 
+#: crossings located per step; more in one step are reported, not located
+MAX_CROSSINGS_PER_STEP = 8
+
+
 class _StepFailure(Exception):
     pass
 
@@ -1130,7 +1134,16 @@ class _Context:
         up = nb > na
         j = na if up else na - 1
         k = max(self.n_eigs, 4)
+        located = 0
         while (up and j < nb) or (not up and j >= nb):
+            if located == MAX_CROSSINGS_PER_STEP:
+                # each location costs several factorisations: 175 crossings in one step took minutes
+                # each without a word; the first ones are where stability is lost
+                if self.log:
+                    self.log(f"    the inertia jumps from {na} to {nb} negative eigenvalues in one step: the first "
+                             f"{located} crossings are located, the others are not (a smaller ds_max resolves them)")
+                break
+            located += 1
 
             def f(sig, j=j):
                 P = self.point_at(A, sig, k, cache)
