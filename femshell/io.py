@@ -404,8 +404,8 @@ class TimeSeriesWriter:
     resume : bool
         False (a new run): frames of an earlier series with this name in ``out_dir``
         are deleted when the first frame is written (its arguments checked first, so a
-        refused frame leaves the earlier series in place). True: the existing ``.pvd`` is read and appended to; entries whose
-        file is missing are dropped with a warning. Call :meth:`truncate_after` with the
+        refused frame leaves the earlier series in place). True: the existing ``.pvd`` is
+        read and appended to; entries whose file is missing are dropped with a warning. Call :meth:`truncate_after` with the
         checkpoint time so frames written after the checkpoint disappear.
 
     Each :meth:`write` writes its VTU atomically, then rewrites the .pvd atomically,

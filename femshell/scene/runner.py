@@ -534,9 +534,9 @@ class TimeRunner(BaseRunner):
         if math.isfinite(amp) and amp > 0 and field.max() < 0.5 * amp:
             pts, e = np.asarray(self.mesh.points, float), self.mesh.topology.edges
             edge = float(np.linalg.norm(pts[e[:, 1]] - pts[e[:, 0]], axis=1).mean())
-            self.p.failure(f"warning: the initial spot (width {width:.3g}) is narrower than the mesh resolves (mean edge "
-                           f"{edge:.3g}): its largest vertex value is {field.max() / amp:.2%} of its amplitude; "
-                           "widen it (initial.width) or refine the mesh")
+            self.p.failure(f"warning: the initial spot (width {width:.3g}) is narrower than the mesh resolves "
+                           f"(mean edge {edge:.3g}): its largest vertex value is {field.max() / amp:.2%} of its "
+                           "amplitude; widen it (initial.width) or refine the mesh")
 
     def initialise(self):
         self._seed_warning()

@@ -181,7 +181,8 @@ class ShellModel:
                 raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
         for name, items, method in (("boundary_conditions", boundary_conditions, "apply"), ("loads", loads, "setup")):
             if not isinstance(items, (list, tuple)):
-                raise TypeError(f"{name} must be a list, got {type(items).__name__} (write [{type(items).__name__}(...)])")
+                kind = type(items).__name__
+                raise TypeError(f"{name} must be a list, got {kind} (write [{kind}(...)])")
             for item in items:
                 if not hasattr(item, method):
                     raise TypeError(f"{name} holds a {type(item).__name__}, not a femshell "

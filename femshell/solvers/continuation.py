@@ -52,8 +52,8 @@ L = mesh size a post-buckled branch is so steep in this norm (λ changes by O(1)
   ``fast_iterations`` iterations, and is halved after a failure (no convergence, divergence,
   a corrector that moved more than ``ds`` from the predictor, a tangent that turned by
   more than ``max_turn_deg``, or a parameter value the problem refuses: a ValueError from
-  ``set_parameter`` or ``parameter_derivative``, e.g. a growth strain <= -1). Below ``ds_min`` the continuation stops with a message
-  (``Branch.status == "ds_min"``).
+  ``set_parameter`` or ``parameter_derivative``, e.g. a growth strain <= -1). Below
+  ``ds_min`` the continuation stops with a message (``Branch.status == "ds_min"``).
 * **Stability** at every accepted point: the inertia of K (symmetric-indefinite LDLᵀ,
   Sylvester's law) gives the number of negative eigenvalues; the ``n_eigs`` eigenvalues
   of smallest magnitude (shift-invert Lanczos about 0 on the same factorisation;
