@@ -53,6 +53,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from ._checks import finite, finite_vector
 from .geometry import triangle_areas
 
 __all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeasures", "find_spots",
@@ -76,33 +77,12 @@ def _mesh(points, triangles):
     return pts, tri.astype(np.int64)
 
 
-def _real(name, v, lo=-math.inf, hi=math.inf, text=None):
-    """float(v), finite and in [lo, hi], or a ValueError naming the argument."""
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {v!r}") from None
-    if not (math.isfinite(x) and lo <= x <= hi):
-        raise ValueError(f"{name} must be {text or f'a finite number in [{lo:g}, {hi:g}]'}, got {v!r}")
-    return x
-
-
 def _count(name, v, lo, hi):
     """An integer argument in [lo, hi] (a whole float such as 18.0 is accepted)."""
-    x = _real(name, v, lo, hi, text=f"an integer in [{lo}, {hi}]")
-    if x != int(x):
+    x = finite(name, v)
+    if x != int(x) or not lo <= x <= hi:
         raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
     return int(x)
-
-
-def _vector(name, v, size):
-    try:
-        a = np.asarray(v, dtype=float)
-    except (TypeError, ValueError):
-        a = None
-    if a is None or a.shape != (size,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be {size} finite numbers, got {v!r}")
-    return a
 
 
 def _field(values, n, name="values"):
@@ -321,10 +301,10 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
     pts, tri = _mesh(points, triangles)
     n = len(pts)
     cv = _field(c, n, "c")
-    c_star = _real("c_star", c_star)
+    c_star = finite("c_star", c_star)
     if min_area is not None:
-        min_area = _real("min_area", min_area, 0.0, text="a finite area >= 0")
-    ridge_elongation = _real("ridge_elongation", ridge_elongation, 1.0, text="a finite number >= 1")
+        min_area = finite("min_area", min_area, 0.0)
+    ridge_elongation = finite("ridge_elongation", ridge_elongation, 1.0)
     tri_area = triangle_areas(pts, tri)
     area_total = float(tri_area.sum())
     if min_area is None:
@@ -468,11 +448,11 @@ def polar_profile(points, values, n_bins: int = 18, *, triangles=None, pole=(0.0
         raise ValueError(f"points hold NaN or infinity at {int((~np.isfinite(pts)).any(axis=1).sum())} vertices")
     v = _field(values, len(pts), "values")
     n_bins = _count("n_bins", n_bins, 1, 100_000)
-    p = _vector("pole", pole, 3)
+    p = finite_vector("pole", pole, 3)
     if not np.linalg.norm(p) > 0:
         raise ValueError(f"pole must be a non-zero 3-vector, got {pole!r}")
     p = p / np.linalg.norm(p)
-    ctr = pts.mean(axis=0) if center is None else _vector("center", center, 3)
+    ctr = pts.mean(axis=0) if center is None else finite_vector("center", center, 3)
     d = pts - ctr
     r = np.linalg.norm(d, axis=1)
     theta = np.arccos(np.clip((d @ p) / np.maximum(r, 1e-300), -1.0, 1.0))
@@ -518,12 +498,10 @@ def _circle_samples(points, values, radius, center, n_samples, triangles):
         if np.ptp(pts[:, 2]) > 1e-9 * extent:
             raise ValueError(f"points must be a flat mesh in the xy plane (the reference positions), got z from "
                              f"{pts[:, 2].min():.6g} to {pts[:, 2].max():.6g}")
-    radius = _real("radius", radius, 0.0, text="a finite number > 0")
-    if radius == 0:
-        raise ValueError("radius must be a finite number > 0, got 0")
+    radius = finite("radius", radius, 0.0, lo_open=True)
     ns = _count("n_samples", n_samples, 8, 1_000_000)
     phi = 2 * math.pi * np.arange(ns) / ns
-    cx, cy = _vector("center", center, 2)
+    cx, cy = finite_vector("center", center, 2)
     q = np.column_stack([cx + radius * np.cos(phi), cy + radius * np.sin(phi)])
     if triangles is not None:
         tri = _mesh(pts, triangles)[1]
@@ -583,7 +561,7 @@ def count_wrinkles(points, values, radius: float, *, center=(0.0, 0.0), n_sample
         raise ValueError(f"method must be 'fourier' or 'zeros', got {method!r}")
     w = _circle_samples(points, values, radius, center, n_samples, triangles)
     min_mode = _count("min_mode", min_mode, 1, len(w) // 2)
-    rel_tol = _real("rel_tol", rel_tol, 0.0, 1.0)
+    rel_tol = finite("rel_tol", rel_tol, 0.0, 1.0)
     amp = _spectrum(w)
     scale = amp[0] + amp[1:].sum()
     modes = amp[int(min_mode):]

@@ -104,6 +104,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
+from ._checks import finite as _finite, finite_vector
 from .chemistry import ReactionDiffusion, curvature_source
 from .geometry import element_to_vertex, mean_curvature
 from .growth import THICKNESS_MODES, contractility, element_average, stretch, target_metric, target_thickness
@@ -128,23 +129,6 @@ STATE_VERSION = 1
 
 class CoupledError(RuntimeError):
     """The time loop could not make a step; the loop still holds the last accepted state."""
-
-
-def _finite(name, v, lo=None, hi=None, lo_open=False, hi_open=False, text=None):
-    try:
-        v = float(v)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {v!r}") from None
-    bad = not math.isfinite(v)
-    if lo is not None:
-        bad |= (v <= lo) if lo_open else (v < lo)
-    if hi is not None:
-        bad |= (v >= hi) if hi_open else (v > hi)
-    if bad:
-        rng = text or (f"{'(' if lo_open else '['}{'-inf' if lo is None else lo}, "
-                       f"{'inf' if hi is None else hi}{')' if hi_open or hi is None else ']'}")
-        raise ValueError(f"{name} must be a finite number in {rng}, got {v!r}")
-    return v
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -318,16 +302,6 @@ class GrowthCoupling:
 
 # ----------------------------------------------------------------------------- initial condition
 
-def _point3(name, value):
-    try:
-        v = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        v = None
-    if v is None or v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} must be three finite numbers (x, y, z), got {value!r}")
-    return v
-
-
 def gaussian_spot(points, amplitude: float, width: float, *, pole=(0.0, 0.0, 1.0), center=None,
                   elongation: float = 1.0, direction=None, distance: str = "geodesic") -> np.ndarray:
     r"""c0 = amplitude · exp(−(r/width)²) about a pole (concentration at the vertices, (n,)).
@@ -352,9 +326,10 @@ def gaussian_spot(points, amplitude: float, width: float, *, pole=(0.0, 0.0, 1.0
     if p.shape != (3,) or not np.linalg.norm(p) > 0:
         raise ValueError(f"pole must be a non-zero 3-vector, got {pole!r}")
     p = p / np.linalg.norm(p)
-    ctr = pts.mean(axis=0) if center is None else _point3("center", center)
+    xyz = "three finite numbers (x, y, z)"
+    ctr = pts.mean(axis=0) if center is None else finite_vector("center", center, 3, xyz)
     d = pts - ctr
-    dirv = np.array([1.0, 0.0, 0.0]) if direction is None else _point3("direction", direction)
+    dirv = np.array([1.0, 0.0, 0.0]) if direction is None else finite_vector("direction", direction, 3, xyz)
     e1 = dirv - (dirv @ p) * p
     if np.linalg.norm(e1) < 1e-8:
         e1 = np.array([0.0, 1.0, 0.0]) - p[1] * p

@@ -1,0 +1,36 @@
+"""Argument checks shared by the modules: a ValueError that names the argument and its range."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def finite(name, v, lo=None, hi=None, lo_open=False, hi_open=False, text=None) -> float:
+    """``float(v)``, finite and within the bounds (open or closed), or a ValueError naming ``name``."""
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {v!r}") from None
+    bad = not math.isfinite(v)
+    if lo is not None:
+        bad |= (v <= lo) if lo_open else (v < lo)
+    if hi is not None:
+        bad |= (v >= hi) if hi_open else (v > hi)
+    if bad:
+        rng = text or (f"{'(' if lo_open else '['}{'-inf' if lo is None else lo}, "
+                       f"{'inf' if hi is None else hi}{')' if hi_open or hi is None else ']'}")
+        raise ValueError(f"{name} must be a finite number in {rng}, got {v!r}")
+    return v
+
+
+def finite_vector(name, value, size: int, what: str | None = None) -> np.ndarray:
+    """``value`` as a float array of shape (size,) with finite entries, or a ValueError naming ``name``."""
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        v = None
+    if v is None or v.shape != (size,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be {what or f'{size} finite numbers'}, got {value!r}")
+    return v
