@@ -304,6 +304,18 @@ def test_continuation_resume(tmp_path):
     assert [t for t, _ in entries] == list(range(len(entries)))
 
 
+def test_continuation_short_of_its_stop_says_so(tmp_path):
+    # 2 steps of ds 1e-6 cannot reach a stop at strain 1e-3: the run is not "done"
+    over = ["mesh.edge_length=0.4", "solver.stop=1e-3", "solver.max_steps=2", "solver.n_eigs=0",
+            "solver.switch_branch=false", "solver.ds=1e-6"]
+    out = tmp_path / "run"
+    assert run("clamped-plate-buckling", out, overrides=over) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "max_steps_branch", s["status"]
+    assert "primary branch: stopped at solver.max_steps = 2 before its stop value 0.001" in s["message"]
+    assert s["final"]["final_value"] < 1e-3
+
+
 def test_continuation_leaving_the_parameter_range_is_named(tmp_path, capsys):
     # strain -0.9999999 is a valid start (stretch > 0) but the parameter's difference step crosses -1
     over = ["mesh.edge_length=0.4", "solver.start=-0.9999999", "solver.max_steps=2", "solver.n_eigs=0"]

@@ -1004,8 +1004,19 @@ class ContinuationRunner(BaseRunner):
         return self.phase == "done"
 
     def final_status(self):
+        so = self.scene["solver"]
+        stops = {"primary": so["stop"], "switched": so["switch_stop"] if so["switch_stop"] is not None else so["stop"]}
+        # a branch that ran out of steps before the stop value it was given is not a finished study
+        short = [k for k, v in self.branch_status.items() if v["status"] == "max_steps" and stops.get(k) is not None]
+        text = "; ".join(f"{k} branch: {v['message']}" for k, v in self.branch_status.items() if k not in short)
+        if short:
+            self.message = "; ".join(
+                f"{k} branch: stopped at solver.max_steps = {so['max_steps']} before its stop value {stops[k]:g}"
+                for k in short) + (": run again with a larger solver.max_steps (or a larger solver.ds) and "
+                                   "--overwrite") + (f"; {text}" if text else "")
+            return "max_steps_branch"
         if not self.message:
-            self.message = "; ".join(f"{k} branch: {v['message']}" for k, v in self.branch_status.items())
+            self.message = text
         return "done"
 
     def frame(self):
@@ -1061,9 +1072,11 @@ class ContinuationRunner(BaseRunner):
                     f"it {row['iterations']}  n_neg {row['n_negative']}  amplitude {row.get('amplitude', 0):.4g}"
                     + (f"  wrinkles {int(row['wrinkles'])}" if "wrinkles" in row else "")
                     + (f"  passed {', '.join(sp.label for sp in new_sp)}" if new_sp else ""))
-            frac = None
+            # the branch ends at its stop value or at max_steps, whichever comes first
+            frac = (row["step"] + steps_done) / so["max_steps"]
             if stop is not None and stop != self._seg_start:
-                frac = min(max((row["parameter"] - self._seg_start) / (stop - self._seg_start), 0.0), 1.0)
+                frac = max(frac, (row["parameter"] - self._seg_start) / (stop - self._seg_start))
+            frac = min(max(frac, 0.0), 1.0)
             self.accepted(text, frac)
             if self.max_steps is not None and self.steps_this_run >= self.max_steps:
                 return True
