@@ -32,6 +32,7 @@ array([[ 1. , -0.5, -0.5],
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 
@@ -379,9 +380,15 @@ class ReactionDiffusion:
                 except LinearSolverError:
                     # the mass term is lost to round-off next to dt·D·K, whose null space is the constants
                     self._factor = None
+                    # how far diffusion reaches in the step against the surface's own size
+                    size = math.sqrt(float(self.mass.sum()))
+                    reach = math.sqrt(dt * self.D) / size if size > 0 else math.inf
                     raise ValueError(f"the step dt = {dt:.6g} is too long for D = {self.D:g}, beta = {self.beta:g}: "
-                                     "M (1 + beta dt) + dt D K is singular in double precision; take a "
-                                     "smaller dt") from None
+                                     "M (1 + beta dt) + dt D K is singular in double precision (diffusion "
+                                     f"spreads over sqrt(D dt) = {reach:.3g} times the surface's size, sqrt(area), "
+                                     "in one step); take a smaller dt or a smaller D: a D whose sqrt(D dt) is "
+                                     "already many times the surface's size gives the same, well-mixed, "
+                                     "concentration") from None
                 self._factor_dt = dt
             out = self._factor.solve(self.mass * (c + dt * P))
         if not np.all(np.isfinite(out)):   # e.g. β = 0 and dt·P past the float range

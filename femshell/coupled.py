@@ -719,6 +719,14 @@ class CoupledLoop:
                       "the neo-Hookean membrane (scene: material.law = \"neo-hookean\"; API: membrane_law) "
                       "stays elliptic")
 
+    def _steep_switch_hint(self, ds) -> str:
+        """Why no dt meets ds_max: s(c) jumps where c crosses c* (a large b makes Λ(c) a step)."""
+        p = self.params
+        return (f"; the stretch still jumps by {ds:.3g} in a step of dt_min: where c crosses c* = {p.c_star:g}, "
+                f"s(c) rises by {p.s_max - 1:.3g} over a change of c of about 8/b = {8 / p.b:.3g} (b = {p.b:g}), "
+                "less than any step resolves; a smaller b (scene: growth.b) or a larger ds_max (solver.ds_max) "
+                "lets the loop step across the switch")
+
     def _non_elliptic_hint(self) -> str:
         """Why a step may fail that the user can act on: St Venant–Kirchhoff past its limit."""
         if not self.non_elliptic:
@@ -910,6 +918,7 @@ class CoupledLoop:
         dt = float(self.dt)
         cuts = 0
         reason = ""
+        ds = 0.0
         snapped = snap_tried = False
         while True:
             remaining = st.t_final - self.t
@@ -919,6 +928,7 @@ class CoupledLoop:
                 self.growth.apply(self.s)
                 raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: dt = {h:.3g} fell below dt_min = "
                                    f"{st.dt_min:.3g} ({reason}); the last accepted state is kept"
+                                   + (self._steep_switch_hint(ds) if reason.startswith("max |Δs|") else "")
                                    + self._non_elliptic_hint())
             try:
                 c_new = self.chemistry.step(self.c, h, source=source, points=points)

@@ -113,6 +113,18 @@ def test_reaction_diffusion_without_decay_grows_linearly_and_stays_finite(strict
     rd.free()
 
 
+def test_diffusion_beyond_double_precision_names_how_far_it_reaches(sphere_mesh):
+    """D = 1e30 swamps the mass matrix: the error says sqrt(D dt) against the surface's size."""
+    pts, tri = sphere_mesh
+    rd = ReactionDiffusion(tri, len(pts), D=1e30, beta=1.0, points=pts)
+    size = np.sqrt(4 * np.pi) * 30.0                         # sqrt(area) of the sphere, within the mesh's error
+    with pytest.raises(ValueError, match="singular in double precision") as err:
+        rd.step(np.ones(len(pts)), 0.01)
+    reach = float(str(err.value).split("sqrt(D dt) = ")[1].split(" ")[0])
+    assert reach == pytest.approx(np.sqrt(1e30 * 0.01) / size, rel=0.01)
+    rd.free()
+
+
 def test_obtuse_triangles_are_clipped_with_a_warning_that_names_the_mesh(sphere_mesh):
     """Pass: on a mesh with obtuse (non-Delaunay) triangles the implicit step loses the maximum
     principle and undershoots next to a spike; c stays ≥ 0 and finite, and the warning says the mesh

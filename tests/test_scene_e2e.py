@@ -304,6 +304,15 @@ def test_continuation_resume(tmp_path):
     assert [t for t, _ in entries] == list(range(len(entries)))
 
 
+def test_a_step_switch_names_the_steepness(tmp_path, capsys):
+    # b = 1e30 makes Λ(c) a step: where c crosses c*, no dt keeps |Δs| under ds_max
+    over = ["mesh.n_vertices=300", "growth.b=1e30", "solver.t_final=1", "solver.dt_min=1e-4"]
+    assert run("sphere-small", tmp_path / "run", overrides=over) == 1
+    err = capsys.readouterr().err
+    assert "fell below dt_min" in err and "a change of c of about 8/b = 8e-30 (b = 1e+30)" in err
+    assert "growth.b" in err and "solver.ds_max" in err
+
+
 def test_continuation_short_of_its_stop_says_so(tmp_path):
     # 2 steps of ds 1e-6 cannot reach a stop at strain 1e-3: the run is not "done"
     over = ["mesh.edge_length=0.4", "solver.stop=1e-3", "solver.max_steps=2", "solver.n_eigs=0",
