@@ -304,6 +304,15 @@ def test_continuation_resume(tmp_path):
     assert [t for t, _ in entries] == list(range(len(entries)))
 
 
+def test_a_thick_shell_is_warned_once_and_runs(tmp_path, capsys):
+    # sphere-small has R = 15: h = 10 is two thirds of the radius; h = 2 (the paper's) is not warned
+    assert run("sphere-small", tmp_path / "thick", overrides=SPHERE_TINY + ["shell.thickness=10"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning: the shell is thick") == 1 and "thickness 10 against a surface of size" in err
+    assert run("sphere-small", tmp_path / "thin", overrides=SPHERE_TINY) == 0
+    assert "thick" not in capsys.readouterr().err
+
+
 def test_a_step_switch_names_the_steepness(tmp_path, capsys):
     # b = 1e30 makes Λ(c) a step: where c crosses c*, no dt keeps |Δs| under ds_max
     over = ["mesh.n_vertices=300", "growth.b=1e30", "solver.t_final=1", "solver.dt_min=1e-4"]

@@ -398,6 +398,7 @@ class BaseRunner:
             self.rd.start(self.scene)
             self.p.say(f"resumed from the checkpoint at step {self.step} ({self.resume_text()})")
         else:
+            self._thickness_warning()
             self.initialise()
             self.write_frame()
             self.checkpoint()
@@ -442,6 +443,18 @@ class BaseRunner:
 
     def resume_text(self):
         return f"series time {self.series_time():.6g}"
+
+    def _thickness_warning(self):
+        """Kirchhoff–Love theory needs h ≪ the surface's size: say so where h is a quarter of it or more."""
+        from ..geometry import triangle_areas
+
+        h = self.scene.data.get("shell", {}).get("thickness")
+        area = float(triangle_areas(np.asarray(self.mesh.points, float), self.mesh.triangles).sum())
+        size = math.sqrt(area / math.pi)        # a disk's radius; twice a sphere's
+        if isinstance(h, (int, float)) and size > 0 and h > 0.25 * size:
+            self.p.failure(f"warning: the shell is thick for thin-shell (Kirchhoff–Love) theory: thickness {h:g} "
+                           f"against a surface of size sqrt(area/pi) = {size:.3g} (a sphere's diameter, a disk's "
+                           "radius); the model assumes thickness ≪ size, so read the results as qualitative")
 
     def final_status(self):
         return "done"
