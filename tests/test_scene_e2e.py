@@ -17,6 +17,7 @@ import pytest
 
 from femshell.cli import main
 from femshell.io import load_checkpoint, read_pvd
+from femshell.mesh import SurfaceMesh
 from femshell.scene import SceneError, list_scenes, load_scene, run_scene
 
 SPHERE_TINY = ["mesh.n_vertices=150", "solver.t_final=0.04", "output.every=1"]
@@ -311,6 +312,29 @@ def test_a_thick_shell_is_warned_once_and_runs(tmp_path, capsys):
     assert err.count("warning: the shell is thick") == 1 and "thickness 10 against a surface of size" in err
     assert run("sphere-small", tmp_path / "thin", overrides=SPHERE_TINY) == 0
     assert "thick" not in capsys.readouterr().err
+
+
+def test_a_fold_finer_than_the_mesh_is_warned(tmp_path, capsys):
+    # a plate just past buckling is smooth: no warning; the tiny sphere's spot (edges of 4 against a spot of
+    # radius 2) folds by tens of degrees per edge: the warning, and the summary's count checked against the
+    # last frame's shape
+    from femshell.geometry import fold_angles
+    from femshell.scene import runner
+
+    assert run("clamped-plate-buckling", tmp_path / "a", overrides=TINY["clamped-plate-buckling"]) == 0
+    assert "neighbouring faces" not in capsys.readouterr().err
+    assert json.loads((tmp_path / "a" / "summary.json").read_text())["final"]["max_fold_change_deg"] < 1
+    assert run("default", tmp_path / "b", overrides=SPHERE_TINY) == 0
+    err = capsys.readouterr().err
+    fin = json.loads((tmp_path / "b" / "summary.json").read_text())["final"]
+    _, last = check_series(tmp_path / "b")
+    rest = last.points - last.point_data["displacement"]
+    tri = [c for c in last.cells if c.type == "triangle"][0].data
+    ef = SurfaceMesh(rest, tri).topology.edge_faces
+    turn = np.abs(fold_angles(last.points, tri, ef) - fold_angles(rest, tri, ef))
+    assert fin["max_fold_change_deg"] == pytest.approx(turn.max(), rel=1e-6)
+    assert fin["edges_folded_over_limit"] == np.count_nonzero(turn > runner.FOLD_WARNING_DEG) > 0
+    assert f"warning: neighbouring faces turn by up to {turn.max():.0f}°" in err
 
 
 def test_a_step_switch_names_the_steepness(tmp_path, capsys):
