@@ -31,9 +31,11 @@ def _fmt(v, spec=".4g"):
 def validation_report(results: Path = ROOT / "validation" / "results") -> str:
     """Markdown tables of every validation JSON in ``results``."""
     lines = ["# Validation report", "",
-             "Made by `python docs/build.py` from `validation/results/*.json`, the output of",
+             "Made by `python docs/build.py --update-report` from `validation/results/*.json`, the output of",
              "`femshell validate NAME --level full --out validation/results`. Each row compares femshell with",
-             "an independent reference; `passed` is empty where a row is reported without a tolerance.", ""]
+             "an independent reference; `passed` is empty where a row is reported without a tolerance.",
+             "`rel. error` is |value − reference| / |reference|, and the absolute error where the reference is 0.",
+             ""]
     files = sorted(results.glob("*.json"))
     if not files:
         lines.append("No results yet: run `femshell validate all --level full --out validation/results`.")

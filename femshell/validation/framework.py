@@ -66,6 +66,14 @@ class Row:
             self.passed = self.rel_error is not None and self.rel_error <= self.tolerance
 
 
+def short_reason(exc, limit=100) -> str:
+    """The first clause of an error message, cut at a word (for a row's quantity name)."""
+    text = str(exc).split(";")[0].strip()
+    if len(text) <= limit:
+        return text
+    return text[:limit].rsplit(" ", 1)[0] + " …"
+
+
 @contextmanager
 def timed():
     """``with timed() as t: ...`` then ``t()`` is the elapsed wall time in seconds."""

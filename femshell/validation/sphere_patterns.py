@@ -65,7 +65,7 @@ from ..geometry import fold_angles
 from ..coupled import CoupledError, CoupledLoop, InitialSpot, MechanochemicalModel, TimeStepping
 from ..io import load_checkpoint, save_checkpoint
 from ..mesh import sphere
-from .framework import Row
+from .framework import Row, short_reason
 
 NAME = "sphere-patterns"
 DESCRIPTION = ("the paper's sphere scenarios (spots, ridges, decay, D, thickness, R = 15, icosahedral): "
@@ -218,7 +218,7 @@ def run(level: str = "quick", out_dir=None, log=None) -> list:
         try:
             r = run_scenario(sc, t_final=t_final, n_vertices=nv, radius=R, checkpoint=ck, log=log)
         except CoupledError as exc:        # the initial equilibrium failed: the other scenarios still run
-            rows.append(Row(f"{name}: run failed ({str(exc)[:80]})", 1.0, 0.0, 0.0, nv, 0.0))
+            rows.append(Row(f"{name}: run failed ({short_reason(exc)})", 1.0, 0.0, 0.0, nv, 0.0))
             continue
         if r["status"] == "interrupted":   # Ctrl-C: the run is checkpointed; stop the case, not one scenario
             raise KeyboardInterrupt

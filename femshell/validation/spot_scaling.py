@@ -70,7 +70,7 @@ from pathlib import Path
 import numpy as np
 
 from ..coupled import CoupledError, InitialSpot
-from .framework import Row
+from .framework import Row, short_reason
 from .sphere_patterns import Scenario, draw_top_view, invariant_rows, run_scenario
 
 NAME = "spot-scaling"
@@ -169,7 +169,7 @@ def run(level, out_dir=None, log=None):
         try:
             r = run_state(key, cfg, ck_dir, log)
         except CoupledError as exc:        # the initial equilibrium failed: the other states still run
-            rows.append(Row(f"run failed ({str(exc)[:80]}) @ {_key_text(key)}", 1.0, 0.0, 0.0, key[4], 0.0))
+            rows.append(Row(f"run failed ({short_reason(exc)}) @ {_key_text(key)}", 1.0, 0.0, 0.0, key[4], 0.0))
             continue
         states[key] = r
         m = r["measures"]
