@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
 
 MESH_KINDS = ("sphere", "disk", "plate", "strip", "annulus", "cylinder", "hemisphere")
+#: the kinds each geometric option of `femshell mesh` applies to
+MESH_OPTIONS = {"radius": ("sphere", "disk", "cylinder", "hemisphere"), "inner_radius": ("disk", "annulus"),
+                "outer_radius": ("annulus",), "vertices": ("sphere", "disk", "hemisphere"),
+                "edge_length": MESH_KINDS, "inner_edge_length": ("disk",), "length": ("plate", "strip", "cylinder"),
+                "width": ("plate", "strip"), "angle": ("cylinder",), "hole_angle": ("hemisphere",),
+                "slit": ("annulus",)}
 
 
 def _positive(name):
@@ -122,17 +129,23 @@ def _cmd_mesh(args):
                 if f is not None and f.exists()]
     if existing and not args.overwrite:   # checked before meshing: no output lost, no time wasted
         raise ValueError(f"{', '.join(map(str, existing))} exists; pass --overwrite to replace it")
+    stray = [f"--{k.replace('_', '-')}" for k, kinds in MESH_OPTIONS.items()
+             if args.kind not in kinds and getattr(args, k) not in (None, False)]
+    if stray:       # an option the kind ignores would leave the user believing it was applied
+        own = [f"--{k.replace('_', '-')}" for k, kinds in MESH_OPTIONS.items() if args.kind in kinds]
+        raise ValueError(f"{', '.join(stray)} {'does' if len(stray) == 1 else 'do'} not apply to {args.kind} "
+                         f"(its options: {', '.join(own)})")
     g = generators
     kw = {"seed": args.seed}
     if args.kind in ("sphere", "hemisphere"):
         kw.update(radius=args.radius or 1.0)
-        if args.vertices:
+        if args.vertices is not None:
             kw["n_vertices"] = args.vertices
         if args.edge_length:
             kw["edge_length"] = args.edge_length
         if args.kind == "hemisphere" and args.hole_angle is not None:
-            if not 0 < args.hole_angle <= 90:
-                raise ValueError(f"--hole-angle must be in (0, 90] degrees, got {args.hole_angle:g}")
+            if not 0 < args.hole_angle < 90:
+                raise ValueError(f"--hole-angle must be in (0, 90) degrees, got {args.hole_angle:g}")
             kw["hole_angle"] = math.radians(args.hole_angle)
     elif args.kind == "disk":
         kw.update(radius=args.radius or 1.0, edge_length=args.edge_length, n_vertices=args.vertices,
@@ -156,7 +169,10 @@ def _cmd_mesh(args):
                                  f"got {a0:g} {a1:g}")
             kw["angle_range"] = (math.radians(a0), math.radians(a1))
     t0 = time.perf_counter()
-    mesh = getattr(g, args.kind)(**{k: v for k, v in kw.items() if v is not None})
+    try:
+        mesh = getattr(g, args.kind)(**{k: v for k, v in kw.items() if v is not None})
+    except RuntimeError as exc:     # gmsh could not mesh what the options describe
+        raise ValueError(f"{args.kind}: {exc} (an extreme option value? see femshell mesh {args.kind} --help)") from None
     elapsed = time.perf_counter() - t0
     report = check_mesh(mesh)
     write_mesh(mesh, args.output)
@@ -169,20 +185,21 @@ def _cmd_validate(args):
     from .validation import list_cases, run_case
 
     cases = list_cases()
-    if args.list or not args.name:
-        for name, desc in cases.items():
-            print(f"{name:<34} {desc}")
-        return 0
     if "all" in args.name and len(args.name) > 1:
         raise ValueError("'all' runs every case; give it alone or name the cases")
-    names = list(cases) if args.name == ["all"] else args.name
+    names = list(cases) if args.name in ([], ["all"]) else args.name
     unknown = [n for n in names if n not in cases]
     if unknown:
         raise ValueError(f"unknown validation case(s): {', '.join(unknown)}; available: {', '.join(cases)}")
+    if args.list or not args.name:
+        for name in names:
+            print(f"{name:<34} {cases[name]}")
+        return 0
     _check_writable_dir(Path(args.out), "--out")   # before hours of computing, not after
     ok = True
     for name in names:
-        print(f"== {name} ({args.level})")
+        earlier = Path(args.out) / f"{name}.json"
+        print(f"== {name} ({args.level})" + (f"; replaces {earlier}" if earlier.exists() else ""))
         ok &= run_case(name, args.level, args.out)
     print(f"results in {args.out}/")
     return 0 if ok else 1
@@ -254,6 +271,10 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader closed the pipe (| head): stop quietly, as shell tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except (ValueError, OSError) as exc:  # bad input or an unusable path: a clear message, no traceback
         if isinstance(exc, OSError) and exc.strerror:
             exc = f"cannot use {exc.filename}: {exc.strerror}" if exc.filename else exc.strerror

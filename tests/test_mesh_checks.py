@@ -108,6 +108,28 @@ def test_nonfinite_coordinates_named():
     assert "2 such vertices" in msg
 
 
+@pytest.mark.parametrize("scale", [0.0, 1e-200, 1e200])
+def test_collapsed_or_overflowing_mesh_is_out_of_range(scale):
+    # areas (length²) of such meshes underflow to 0 or overflow to inf: the mesh is refused by its size
+    m = icosphere()
+    span = re.escape(f"{2 * scale:.3g}")
+    with pytest.raises(MeshError, match=rf"size out of range: the mesh spans {span} .* outside \[1e-09, 1e\+08\]"):
+        check_mesh(m.with_points(np.array(m.points) * scale))
+
+
+def test_surface_mesh_arguments_are_checked():
+    m = icosphere()
+    assert SurfaceMesh(m.points, m.triangles, None).boundary == {}
+    with pytest.raises(ValueError, match="boundary must be a dict .* got list"):
+        SurfaceMesh(m.points, m.triangles, [[0, 1]])
+    with pytest.raises(ValueError, match="boundary curve 'a' must be .* dtype float64"):
+        SurfaceMesh(m.points, m.triangles, {"a": [[0.5, 1.0]]})
+    from femshell.mesh.topology import build_topology
+
+    with pytest.raises(MeshError, match="triangles must be integer vertex indices, got dtype float64"):
+        build_topology(np.array(m.triangles, float) + 0.7, m.n_vertices)
+
+
 def test_index_out_of_range_named():
     m = plate()
     tri = np.array(m.triangles)

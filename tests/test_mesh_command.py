@@ -45,9 +45,15 @@ def test_disk_command_has_inner_circle(tmp_path):
 @pytest.mark.parametrize("args, words", [
     (["mesh", "sphere", "--radius", "-1", "-o", "x.vtu"], "--radius must be > 0"),
     (["mesh", "sphere", "--radius", "1", "-o", "x.txt"], ".vtu"),
-    (["mesh", "hemisphere", "--hole-angle", "95", "-o", "x.vtu"], "(0, 90] degrees, got 95"),
+    (["mesh", "hemisphere", "--hole-angle", "95", "-o", "x.vtu"], "(0, 90) degrees, got 95"),
     (["mesh", "cylinder", "--angle", "0", "400", "-o", "x.vtu"], "< 360 degrees, got 0 400"),
     (["mesh", "annulus", "-o", "x.vtu"], "--inner-radius and --outer-radius are required"),
+    # an option the kind ignores, and gmsh's own failures, are usage errors, not tracebacks
+    (["mesh", "plate", "--vertices", "7", "-o", "x.vtu"], "--vertices does not apply to plate (its options: "),
+    (["mesh", "sphere", "--edge-length", "1e-300", "-o", "x.vtu"], "edge_length must be at least"),
+    (["mesh", "cylinder", "--angle", "0", "1e-10", "-o", "x.vtu"], "which gmsh meshes as a full tube"),
+    (["mesh", "hemisphere", "--hole-angle", "1e-6", "-o", "x.vtu"], "which gmsh does not cut at edge length"),
+    (["mesh", "cylinder", "--angle", "0", "1e-6", "-o", "x.vtu"], "(an extreme option value? see femshell mesh "),
 ])
 def test_mesh_command_bad_input(tmp_path, args, words):
     r = _run(*[a if a != "x.vtu" and a != "x.txt" else str(tmp_path / a) for a in args])

@@ -140,6 +140,37 @@ def test_file_without_triangles(tmp_path):
         read_mesh(tmp_path / "lines.vtu")
 
 
+def test_other_faces_and_bad_indices_are_refused(tmp_path):
+    import meshio
+
+    # half a plate as two triangles, half as a quad: reading only the triangles would drop half of it
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0]])
+    mixed = [("triangle", np.array([[0, 1, 2], [0, 2, 3]])), ("quad", np.array([[1, 4, 5, 2]]))]
+    meshio.write(tmp_path / "mixed.vtu", meshio.Mesh(pts, mixed))
+    with pytest.raises(MeshError, match=r"cells other than triangles \(quad\)"):
+        read_mesh(tmp_path / "mixed.vtu")
+    # a negative index with unused points in the file was renumbered to the last point
+    meshio.write(tmp_path / "neg.vtu", meshio.Mesh(pts, [("triangle", np.array([[0, 1, 2], [0, 2, -1]]))]))
+    with pytest.raises(MeshError, match=r"triangle 1 has vertex index -1, outside \[0, 5\]"):
+        read_mesh(tmp_path / "neg.vtu")
+
+
+def test_nothing_non_finite_is_written(tmp_path, slit_ring):
+    pts = np.array(slit_ring.points)
+    pts[3, 0] = np.nan
+    with pytest.raises(ValueError, match="1 vertices with non-finite coordinates"):
+        write_mesh(SurfaceMesh(pts, slit_ring.triangles, slit_ring.boundary), tmp_path / "x.vtu")
+    c = np.zeros(slit_ring.n_vertices)
+    c[0] = np.inf
+    with pytest.raises(ValueError, match="data 'c' has 1 non-finite values"):
+        write_mesh(slit_ring, tmp_path / "x.vtu", point_data={"c": c})
+    with pytest.raises(ValueError, match="data 'name' must be numbers, got dtype <U1"):
+        write_mesh(slit_ring, tmp_path / "x.vtu", point_data={"name": np.full(slit_ring.n_vertices, "a")})
+    assert not (tmp_path / "x.vtu").exists()
+    with pytest.raises(ValueError, match="slit must be True or False, got 'no'"):
+        annulus(0.5, 1.0, edge_length=0.2, slit="no")
+
+
 def test_damaged_file(tmp_path):
     (tmp_path / "bad.vtu").write_text("<VTKFile>not really</VTKFile>")
     with pytest.raises(MeshError, match="bad.vtu"):

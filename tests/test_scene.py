@@ -311,6 +311,33 @@ def test_mesh_file_scene_and_its_curves(tmp_path):
         make_mesh(load_scene(str(p)))
 
 
+def test_resume_on_a_changed_mesh_file_is_refused(tmp_path, capsys):
+    """A mesh file rewritten between a run and its --resume (same vertex count) would continue the
+    run on another shape: refused, naming it; the run there is untouched."""
+    from femshell.cli import main
+    from femshell.mesh import plate, write_mesh
+    from femshell.mesh.surface import SurfaceMesh
+
+    m = plate(1.0, 1.0, edge_length=0.25, structured=True)
+    write_mesh(m, tmp_path / "p.vtu")
+    text = PLATE.replace('kind = "plate"\nlx = 1.0\nly = 1.0\nedge_length = 0.25\nstructured = true',
+                         'file = "p.vtu"').replace("stop = 1e-3", "stop = 1e-3\nmax_steps = 4\nn_eigs = 0")
+    p = write(tmp_path, text)
+    out = tmp_path / "run"
+    args = ["run", str(p), "--out", str(out), "-q", "--set", "output.pictures=false"]
+    assert main(args + ["--max-steps", "1"]) == 0
+    pts = m.points.copy()
+    pts[:, 2] = 0.1 * pts[:, 0] ** 2                   # the same plate, curved
+    write_mesh(SurfaceMesh(pts, m.triangles, m.boundary), tmp_path / "p.vtu")
+    before = {f.name: f.read_bytes() for f in out.iterdir() if f.is_file()}
+    assert main(["run", "--out", str(out), "--resume", "-q"]) == 2
+    assert "was made on another mesh: the scene's mesh has as many vertices, but other triangles or vertex " \
+           "positions (was its mesh file changed?)" in capsys.readouterr().err
+    assert {f.name: f.read_bytes() for f in out.iterdir() if f.is_file()} == before
+    write_mesh(m, tmp_path / "p.vtu")                   # the original back: the resume goes on
+    assert main(["run", "--out", str(out), "--resume", "-q"]) == 0
+
+
 def test_mesh_file_with_a_defect_is_a_scene_error(tmp_path):
     """A drawn mesh is checked like a generated one: a collapsed triangle is named, not met in the model."""
     from femshell.mesh import plate, write_mesh
@@ -342,6 +369,15 @@ def test_free_mesh_file_of_two_pieces_is_a_scene_error(tmp_path):
     free = text.split("[[boundary]]")[0] + "[solver]" + text.split("[solver]")[1]
     with pytest.raises(SceneError, match="two.vtu has 2 separate pieces; a free shell is pinned"):
         make_mesh(load_scene(str(write(tmp_path, free))))
+    # supports on one piece only: the other is named, with where it is
+    from femshell.mesh import read_mesh
+
+    first = next(k for k, v in read_mesh(tmp_path / "two.vtu").topology.boundary_vertex_groups.items()
+                 if v.max() < m.n_vertices)
+    one = text.replace('curve = "left"', f'curve = "{first}"')
+    with pytest.raises(SceneError, match=r"2 separate pieces and 1 of them no support \(piece 1: 25 vertices "
+                                         r"around \[2.5, 0.5, 0.0\]\)"):
+        make_mesh(load_scene(str(write(tmp_path, one))))
 
 
 def test_membrane_law_reaches_the_shell(tmp_path):

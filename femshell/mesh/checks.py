@@ -42,6 +42,8 @@ from ..geometry import fold_angles, triangle_area_vectors, triangle_areas
 from .surface import SurfaceMesh
 from .topology import MeshError
 
+#: The largest extent of a mesh's vertices must lie in this range (the generators make sizes in [1e-6, 1e5]).
+EXTENT_RANGE = (1e-9, 1e8)
 #: A triangle is degenerate when its area is below this times the squared mean edge length.
 DEGENERATE_AREA_FACTOR = 1e-12
 #: Across an interior edge, normals more than this many degrees apart mark a fold
@@ -231,6 +233,12 @@ def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
     if len(bad_v):
         problems.append("non-finite coordinates: " + _examples(
             bad_v, lambda v: f"vertex {v} at {pts[v].tolist()}") + f" ({_plural(len(bad_v), 'vertex', 'vertices')})")
+    if not len(bad_v):
+        extent = float(np.ptp(pts, axis=0).max()) if n else 0.0
+        if not EXTENT_RANGE[0] <= extent <= EXTENT_RANGE[1]:
+            # areas (length²) and curvatures (1/length) of such a mesh underflow or overflow float64
+            problems.append(f"size out of range: the mesh spans {extent:.3g} (largest extent of its vertices), "
+                            f"outside [{EXTENT_RANGE[0]:g}, {EXTENT_RANGE[1]:g}]; rescale its coordinates")
     out = (tri < 0) | (tri >= n)
     bad_t = np.flatnonzero(out.any(axis=1))
     if len(bad_t):

@@ -128,7 +128,8 @@ def edge_length_for_vertices(n_vertices, area, linear=0.0, area_factor=AREA_FACT
 
 
 def _vertices_for_edge_length(h, area, linear=0.0, area_factor=AREA_FACTOR):
-    return area_factor * 2.0 * area / (math.sqrt(3.0) * h * h) + linear / h
+    # (area / h) / h: h * h underflows to 0 for h below 1e-162
+    return area_factor * 2.0 * (area / h) / (math.sqrt(3.0) * h) + linear / h
 
 
 def _resolution(edge_length, n_vertices, area, linear, size, size_name, area_factor=AREA_FACTOR_FLAT,
@@ -589,6 +590,8 @@ def annulus(inner_radius=0.5, outer_radius=1.0, edge_length=None, slit=False, se
     if r >= R:
         raise ValueError(f"inner_radius must be in (0, {R:g}) (less than outer_radius), got {inner_radius!r}")
     seed = _seed(seed)
+    if not isinstance(slit, (bool, np.bool_)):
+        raise ValueError(f"slit must be True or False, got {slit!r}")
     # a slit adds the embedded line and its duplicated vertices: about 1.5 vertices per edge length
     linear = BOUNDARY_LINEAR * 2 * math.pi * (R + r) + (1.5 * (R - r) if slit else 0.0)
     h = _resolution(edge_length, n_vertices, math.pi * (R * R - r * r), linear, R - r,
@@ -683,6 +686,11 @@ def cylinder(radius=1.0, length=1.0, edge_length=None, angle_range=None, seed=0,
             return None
 
         points, tri, curves = _extract(gmsh, [t for _, t in gmsh.model.getEntities(2)], classify)
+    if angle_range is not None and not {"side-a", "side-b"} <= set(curves):
+        # gmsh closes an arc within round-off of 0 or 2 pi into a full circle
+        raise ValueError(f"angle_range=({t0:.6g}, {t1:.6g}) spans {span:.3g} rad, which gmsh meshes as "
+                         f"{'a full tube' if 'bottom' in curves else 'no panel'}: the span must stay clear of 0 and "
+                         "of 2 pi (for the full cylinder give no angle_range)")
     name = f"cylinder radius={R:g} length={L:g} edge_length={h:.4g}"
     if angle_range is not None:
         name += f" angle_range=({t0:.4g}, {t1:.4g})"
@@ -738,6 +746,9 @@ def hemisphere(radius=1.0, edge_length=None, n_vertices=None, hole_angle=None, s
             return None   # the seam meridian of the OCC sphere
 
         points, tri, curves = _extract(gmsh, [t for _, t in gmsh.model.getEntities(2)], classify)
+    if hole > 0 and "hole" not in curves:
+        raise ValueError(f"hole_angle={hole:.3g} rad makes a hole of radius {R * math.sin(hole):.3g}, which gmsh "
+                         f"does not cut at edge length {h:.3g}: give a hole at least an edge wide, or no hole_angle")
     name = f"hemisphere radius={R:g} edge_length={h:.4g}"
     if hole > 0:
         name += f" hole_angle={hole:.4g}"

@@ -98,6 +98,9 @@ def write_mesh(mesh: SurfaceMesh, path, point_data=None, cell_data=None) -> None
     if not isinstance(mesh, SurfaceMesh):
         raise TypeError(f"write_mesh needs a SurfaceMesh, got {type(mesh).__name__}")
     n, m = mesh.n_vertices, mesh.n_triangles
+    if not np.all(np.isfinite(mesh.points)):
+        raise ValueError(f"mesh has {int(np.count_nonzero(~np.isfinite(mesh.points).all(axis=1)))} vertices with "
+                         "non-finite coordinates (NaN or inf); nothing written")
     point_data = {str(k): _checked(k, v, n, "vertex") for k, v in (point_data or {}).items()}
     cell_data = {str(k): _checked(k, v, m, "triangle") for k, v in (cell_data or {}).items()}
     for k in list(point_data) + list(cell_data):
@@ -153,6 +156,11 @@ def _checked(name, value, n, what):
     a = np.asarray(value)
     if a.ndim == 0 or len(a) != n:
         raise ValueError(f"data '{name}' must have one row per {what} ({n}), got shape {a.shape}")
+    if not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+        raise ValueError(f"data '{name}' must be numbers, got dtype {a.dtype}")
+    if np.issubdtype(a.dtype, np.inexact) and not np.all(np.isfinite(a)):
+        raise ValueError(f"data '{name}' has {int(np.count_nonzero(~np.isfinite(a)))} non-finite values "
+                         "(NaN or inf); a mesh file holds finite numbers only")
     return a
 
 
@@ -233,7 +241,16 @@ def read_mesh(path, with_data=False):
     if not blocks:
         types = sorted({c.type for c in raw.cells}) or ["none"]
         raise MeshError(f"mesh file {path} has no triangles (cell types: {', '.join(types)})")
+    # a surface made of triangles and other faces would lose the others without a word
+    other = sorted({c.type for c in raw.cells if c.type not in ("triangle", "line", "vertex")})
+    if other:
+        raise MeshError(f"mesh file {path} has cells other than triangles ({', '.join(other)}); femshell needs a "
+                        "triangle mesh (split the other faces into triangles, e.g. with gmsh)")
     tri = np.concatenate([c.data for _, c in blocks]).astype(np.int64)
+    bad = (tri < 0) | (tri >= len(raw.points))
+    if bad.any():
+        raise MeshError(f"mesh file {path}: triangle {int(np.argmax(bad.any(axis=1)))} has vertex index "
+                        f"{int(tri[bad][0])}, outside [0, {len(raw.points) - 1}] (the file's points)")
     line_blocks = [(i, c) for i, c in enumerate(raw.cells) if c.type == "line"]
 
     boundary = {}

@@ -58,7 +58,17 @@ class SurfaceMesh:
         tri = tri.astype(np.int64) if tri.size else np.zeros((0, 3), np.int64)
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-        bnd = {str(k): np.asarray(v, dtype=np.int64).reshape(-1, 2) for k, v in self.boundary.items()}
+        boundary = {} if self.boundary is None else self.boundary
+        if not hasattr(boundary, "items"):
+            raise ValueError("boundary must be a dict {curve name: (k, 2) vertex index pairs}, got "
+                             f"{type(boundary).__name__}")
+        bnd = {}
+        for k, v in boundary.items():
+            seg = np.asarray(v)
+            if seg.size and (not np.issubdtype(seg.dtype, np.integer) or seg.size % 2):
+                raise ValueError(f"boundary curve {k!r} must be (k, 2) integer vertex index pairs, got "
+                                 f"shape {seg.shape}, dtype {seg.dtype}")
+            bnd[str(k)] = seg.astype(np.int64).reshape(-1, 2)
         pts.setflags(write=False)
         tri.setflags(write=False)
         object.__setattr__(self, "points", pts)

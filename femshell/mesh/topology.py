@@ -86,17 +86,21 @@ def build_topology(triangles: np.ndarray, n_vertices: int, named_boundary: dict 
     (repeated-vertex) triangles and edges shared by more than two triangles,
     naming the offending triangle or edge.
     """
-    tri = np.asarray(triangles, dtype=np.int64)
+    tri = np.asarray(triangles)
+    if tri.size and not np.issubdtype(tri.dtype, np.integer):     # 1.7 would become vertex 1
+        raise MeshError(f"triangles must be integer vertex indices, got dtype {tri.dtype}")
+    tri = tri.astype(np.int64)
     m = len(tri)
     if m == 0:
         raise MeshError("mesh has no triangles")
     bad = np.flatnonzero((tri < 0).any(1) | (tri >= n_vertices).any(1))
     if len(bad):
         raise MeshError(f"triangle {bad[0]} has vertex index out of range 0..{n_vertices - 1}: "
-                        f"{tri[bad[0]].tolist()} ({len(bad)} such triangles)")
+                        f"{tri[bad[0]].tolist()} ({len(bad)} such triangle{'s' if len(bad) > 1 else ''})")
     rep = np.flatnonzero((tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2]))
     if len(rep):
-        raise MeshError(f"triangle {rep[0]} repeats a vertex: {tri[rep[0]].tolist()} ({len(rep)} such triangles)")
+        raise MeshError(f"triangle {rep[0]} repeats a vertex: {tri[rep[0]].tolist()} "
+                        f"({len(rep)} such triangle{'s' if len(rep) > 1 else ''})")
 
     a = tri[:, [1, 2, 0]].ravel()  # half-edge k of face f: tri[f,(k+1)%3] -> tri[f,(k+2)%3]
     b = tri[:, [2, 0, 1]].ravel()

@@ -114,10 +114,8 @@ def make_mesh(scene: Scene):
             from ..mesh.io import read_mesh
             mesh = read_mesh(m["file"])
             report = check_mesh(mesh)   # a drawn mesh may be degenerate, tangled or misoriented: say so now
-            if report.n_components > 1 and not scene["boundary"]:
-                raise ValueError(f"{Path(m['file']).name} has {report.n_components} separate pieces; a free shell "
-                                 "is pinned against rigid motion as one piece, so give each piece supports "
-                                 "([[boundary]]) or use a mesh of one piece")
+            if report.n_components > 1:
+                _check_pieces_supported(mesh, report.n_components, scene["boundary"], Path(m["file"]).name)
         else:
             kw = {k: v for k, v in m.items() if v is not None}
             if kind == "hemisphere" and "hole_angle" in kw:
@@ -143,6 +141,29 @@ def make_mesh(scene: Scene):
         if errors:
             raise SceneError(errors)
     return mesh
+
+
+def _check_pieces_supported(mesh, n_pieces, boundary, name):
+    """A mesh of several pieces needs supports on each: a free shell is pinned as one piece, and a piece
+    without a support floats (a singular Hessian, met only after the step cuts)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    if not boundary:
+        raise ValueError(f"{name} has {n_pieces} separate pieces; a free shell is pinned against rigid motion as "
+                         "one piece, so give each piece supports ([[boundary]]) or use a mesh of one piece")
+    e = mesh.topology.edges
+    n = mesh.n_vertices
+    _, piece = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)), directed=False)
+    groups = mesh.topology.boundary_vertex_groups
+    held = {int(p) for b in boundary if b.get("curve") in groups for p in piece[groups[b["curve"]]]}
+    free = [k for k in range(n_pieces) if k not in held]
+    if free:
+        where = "; ".join(f"piece {k}: {int(np.sum(piece == k))} vertices around "
+                          f"{np.round(mesh.points[piece == k].mean(axis=0), 3).tolist()}" for k in free[:3])
+        raise ValueError(f"{name} has {n_pieces} separate pieces and {len(free)} of them no support ({where}); "
+                         "give each piece a [[boundary]] curve, or merge duplicate vertices if the pieces should "
+                         "be one surface")
 
 
 def boundary_conditions(scene: Scene, mesh) -> list:
@@ -266,8 +287,12 @@ class ShellParts:
         self.bcs = boundary_conditions(scene, mesh)
         self.loads = make_loads(scene, mesh)
         try:
-            self.model = ShellModel(mesh, Material(E=mat["E"], nu=mat["nu"], law=mat["law"]),
-                                    flat_rest_state(mesh.points, mesh.triangles, self.h0), self.bcs, self.loads)
+            rest = flat_rest_state(mesh.points, mesh.triangles, self.h0)
+        except ValueError as exc:
+            raise SceneError(f"{scene.label}: [mesh]: {exc}") from None
+        try:
+            self.model = ShellModel(mesh, Material(E=mat["E"], nu=mat["nu"], law=mat["law"]), rest, self.bcs,
+                                    self.loads)
         except ValueError as exc:
             raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
         a0, b_mesh = self.model.fundamental_forms(self.model.initial_unknowns())

@@ -400,7 +400,8 @@ class BaseRunner:
     def checkpoint(self):
         meta = {"kind": self.kind, "step": self.step, "series_time": self.series_time(),
                 "wall_s": self.wall_before + self.p.elapsed, "newton_total": self.newton_total,
-                "resumes": self.resumes, "scene": self.scene.name, "n_vertices": self.mesh.n_vertices}
+                "resumes": self.resumes, "scene": self.scene.name, "n_vertices": self.mesh.n_vertices,
+                "mesh": mesh_fingerprint(self.mesh)}
         meta.update(self.extra_meta())
         fio.save_checkpoint(self.rd.path / CHECKPOINT, self.state(), meta)
         self.last_ckpt_step = self.step
@@ -1393,10 +1394,20 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
     mesh = make_mesh(sc)                    # scene errors of mesh files come before the directory is touched
     if resume_from is not None:
         n_ck = resume_from[1].get("n_vertices")
+        fp = resume_from[1].get("mesh")
+        changed = None
         if n_ck is not None and n_ck != mesh.n_vertices:
-            raise RunDirError(f"{rd.path / CHECKPOINT} was made on a mesh of {n_ck} vertices, the scene's mesh has "
-                              f"{mesh.n_vertices}: resume with the run's scene (femshell run --out {rd.path} "
-                              "--resume), or start a new run with --overwrite or another --out")
+            changed = f"a mesh of {n_ck} vertices, the scene's mesh has {mesh.n_vertices}"
+        elif fp is not None and not same_mesh(fp, mesh_fingerprint(mesh)):
+            changed = "another mesh: the scene's mesh has as many vertices, but other triangles or vertex positions"
+        if changed:
+            raise RunDirError(f"{rd.path / CHECKPOINT} was made on {changed} (was its mesh file changed?): put the "
+                              "run's mesh back, or start a new run with --overwrite or another --out")
+    if sc["mesh"]["kind"] == "file":
+        from ..mesh import check_mesh
+
+        for w in check_mesh(mesh).warnings:     # a sliver or a poor triangle the run may stumble on
+            print(f"warning: mesh {mesh.name}: {w}", file=sys.stderr if quiet else stream)
     progress = Progress(stream, interval=sc["output"]["progress_interval"], quiet=quiet)
     with rd.lock():
         if overwrite:
@@ -1428,6 +1439,24 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
             if overwrite:
                 rd.put_back()
             raise
+
+
+def mesh_fingerprint(mesh) -> dict:
+    """What identifies a mesh across a resume: its triangles exactly, its vertices by their moments."""
+    import hashlib
+
+    pts = np.asarray(mesh.points, float)
+    tri = np.ascontiguousarray(mesh.triangles, dtype=np.int64)
+    return {"triangles_sha1": hashlib.sha1(tri.tobytes()).hexdigest(),
+            "moments": [float(v) for v in np.concatenate([pts.sum(axis=0), (pts ** 2).sum(axis=0)])]}
+
+
+def same_mesh(a, b) -> bool:
+    """The same triangles and vertex moments within 1e-9 of their size (a regenerated mesh may differ by
+    round-off)."""
+    ma, mb = np.asarray(a["moments"], float), np.asarray(b["moments"], float)
+    return (a["triangles_sha1"] == b["triangles_sha1"] and ma.shape == mb.shape
+            and bool(np.all(np.abs(ma - mb) <= 1e-9 * np.maximum(np.abs(ma).max(), 1e-300))))
 
 
 def _extends(summary, sc):
