@@ -125,6 +125,9 @@ def _cmd_mesh(args):
     from .mesh import check_mesh, format_quality, generators, quality_report, write_mesh
 
     out = Path(args.output)
+    if out.is_dir():
+        raise ValueError(f"-o {out} is a directory: give a file name ending in .vtu, .msh or .xdmf")
+    _check_writable_dir(out.parent, "the output's directory")   # before meshing, not after
     existing = [f for f in (out, out.with_suffix(".h5") if out.suffix == ".xdmf" else None)
                 if f is not None and f.exists()]
     if existing and not args.overwrite:   # checked before meshing: no output lost, no time wasted

@@ -54,12 +54,21 @@ def test_disk_command_has_inner_circle(tmp_path):
     (["mesh", "cylinder", "--angle", "0", "1e-10", "-o", "x.vtu"], "which gmsh meshes as a full tube"),
     (["mesh", "hemisphere", "--hole-angle", "1e-6", "-o", "x.vtu"], "which gmsh does not cut at edge length"),
     (["mesh", "cylinder", "--angle", "0", "1e-6", "-o", "x.vtu"], "(an extreme option value? see femshell mesh "),
+    # ranges that read as they are checked
+    (["mesh", "sphere", "--radius", "inf", "-o", "x.vtu"], "radius must be in [1e-06, 100000]"),
+    (["mesh", "disk", "--inner-radius", "1", "-o", "x.vtu"], "inner_radius must be in (0, 1), got 1.0"),
 ])
 def test_mesh_command_bad_input(tmp_path, args, words):
     r = _run(*[a if a != "x.vtu" and a != "x.txt" else str(tmp_path / a) for a in args])
     assert r.returncode != 0
     assert words in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_a_directory_as_output_is_named(tmp_path):
+    (tmp_path / "d.vtu").mkdir()
+    r = _run("mesh", "sphere", "-o", str(tmp_path / "d.vtu"), "--overwrite")
+    assert r.returncode == 2 and "is a directory: give a file name ending in .vtu" in r.stderr
 
 
 def test_existing_output_is_kept_unless_overwrite(tmp_path):

@@ -72,15 +72,18 @@ _seq = itertools.count()
 
 # ----------------------------------------------------------------------------- validation
 
-def _positive(name, value, upper=None, upper_text=None, lower=0.0):
-    """``value`` as a float in (lower, upper], or a ValueError naming ``name`` and the range."""
+def _positive(name, value, upper=None, upper_text=None, lower=0.0, closed=True):
+    """``value`` as a float in (lower, upper] (``closed=False``: (lower, upper)), or a ValueError
+    naming ``name`` and the range."""
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a number, got {value!r}") from None
     hi = "inf" if upper is None else (upper_text or f"{upper:g}")
-    if not math.isfinite(v) or v <= lower or (upper is not None and v > upper):
-        raise ValueError(f"{name} must be in ({lower:g}, {hi}], got {value!r}")
+    bracket = "]" if upper is not None and closed else ")"
+    if (not math.isfinite(v) or v <= lower or (upper is not None and v > upper)
+            or (upper is not None and not closed and v >= upper)):
+        raise ValueError(f"{name} must be in ({lower:g}, {hi}{bracket}, got {value!r}")
     return v
 
 
@@ -91,8 +94,11 @@ def _size(name, value):
     radius 1e-8 comes out non-manifold, one of 1e6 without triangles, one of 1e30 exhausts the
     memory) the generators fail, so a size there asks for other units instead.
     """
-    v = _positive(name, value)
-    if not MIN_SIZE <= v <= MAX_SIZE:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not MIN_SIZE <= v <= MAX_SIZE:       # NaN and inf included
         raise ValueError(f"{name} must be in [{MIN_SIZE:g}, {MAX_SIZE:g}] (the range the mesh generator handles: "
                          f"choose units that bring the geometry into it), got {value!r}")
     return v
@@ -373,9 +379,7 @@ def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner
     R = _size("radius", radius)
     seed = _seed(seed)
     h = _resolution(edge_length, n_vertices, math.pi * R * R, BOUNDARY_LINEAR * 2 * math.pi * R, R, "radius")
-    r = None if inner_radius is None else _positive("inner_radius", inner_radius, R, f"{R:g} (the radius)")
-    if r is not None and r >= R:
-        raise ValueError(f"inner_radius must be in (0, {R:g}) (less than radius), got {inner_radius!r}")
+    r = None if inner_radius is None else _positive("inner_radius", inner_radius, R, f"{R:g}", closed=False)
     hi = None
     if inner_edge_length is not None:
         if r is None:
@@ -586,9 +590,7 @@ def annulus(inner_radius=0.5, outer_radius=1.0, edge_length=None, slit=False, se
     (['inner', 'outer', 'slit-a', 'slit-b'], 1)
     """
     R = _size("outer_radius", outer_radius)
-    r = _positive("inner_radius", inner_radius, R, f"{R:g} (the outer_radius)")
-    if r >= R:
-        raise ValueError(f"inner_radius must be in (0, {R:g}) (less than outer_radius), got {inner_radius!r}")
+    r = _positive("inner_radius", inner_radius, R, f"{R:g}", closed=False)
     seed = _seed(seed)
     if not isinstance(slit, (bool, np.bool_)):
         raise ValueError(f"slit must be True or False, got {slit!r}")
