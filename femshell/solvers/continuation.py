@@ -113,7 +113,6 @@ import csv
 import io
 import json
 import math
-import os
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -419,20 +418,10 @@ def _json_float(x):
 
 
 def _atomic_text(path: Path, text: str):
-    if path.is_dir():
-        raise ValueError(f"{path} is a directory; cannot write a file there")
-    # open(..., "x") rather than mkstemp: the file gets the user's umask, not mode 0600
-    tmp = path.with_name(f".{path.name}.{os.getpid()}-{os.urandom(4).hex()}.tmp")
-    try:
-        with open(tmp, "x") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    # a crash mid-write must not leave half a table where a whole one was
+    from ..io import atomic_write_text
+
+    atomic_write_text(path, text)
 
 
 # =============================================================================== engine
