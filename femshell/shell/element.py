@@ -329,10 +329,12 @@ def _split_hessian(interior, membrane=svk_membrane):
 
 
 class Kernels:
-    """The batched energy, gradient, Hessian and parts of one membrane law (compiled on first use).
+    """The batched energy, gradient, Hessian and parts of one membrane law (compiled on first use):
+    ``k.energy(*args)`` gives the (m,) element energies, with ``args`` as for :func:`batch_energy`.
 
-    >>> k = kernels("neo-hookean")     # doctest: +SKIP
-    >>> k.energy(*args)                # (m,) element energies, args as for batch_energy
+    >>> k = kernels("neo-hookean")
+    >>> k.law
+    'neo-hookean'
     """
 
     def __init__(self, law: str):
