@@ -427,6 +427,17 @@ def time_loop(scene: Scene, mesh, state=None, log=None):
 
 # ----------------------------------------------------------------------------- dry run
 
+def _source_text(scene: Scene) -> str:
+    """Where a scene came from, short: an embedded one as femshell/scenes/NAME.toml, a file as given."""
+    src = scene.source
+    if src is None:
+        return scene.label
+    src = Path(src)
+    if src.parent == Path(_scenes_dir()):
+        return f"femshell/scenes/{src.name}"
+    return str(src)
+
+
 def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
     """(lines, flags): what a run of ``scene`` builds. Builds the mesh if not given, nothing else."""
     if mesh is None:
@@ -440,7 +451,7 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
     except ValueError as exc:
         raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
     curves = list(t.boundary_edge_groups)
-    lines = [f"scene '{scene.name}' ({scene.source or scene.label}): {d['description'] or '(no description)'}"]
+    lines = [f"scene '{scene.name}' ({_source_text(scene)}): {d['description'] or '(no description)'}"]
     m = d["mesh"]
     args = ", ".join(f"{k}={v}" for k, v in m.items() if k != "kind" and v is not None)
     lines.append(f"  mesh       {m['kind']}({args}): {mesh.n_vertices} vertices, {mesh.n_triangles} triangles, "
