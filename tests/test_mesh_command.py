@@ -57,6 +57,8 @@ def test_disk_command_has_inner_circle(tmp_path):
     # ranges that read as they are checked
     (["mesh", "sphere", "--radius", "inf", "-o", "x.vtu"], "radius must be in [1e-06, 100000]"),
     (["mesh", "disk", "--inner-radius", "1", "-o", "x.vtu"], "inner_radius must be in (0, 1), got 1.0"),
+    (["mesh", "annulus", "--inner-radius", "1", "--outer-radius", "1.0000001", "-o", "x.vtu"],
+     "too slender to mesh: edges must be at most the ring width outer_radius - inner_radius (1e-07)"),
 ])
 def test_mesh_command_bad_input(tmp_path, args, words):
     r = _run(*[a if a != "x.vtu" and a != "x.txt" else str(tmp_path / a) for a in args])

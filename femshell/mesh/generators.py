@@ -143,6 +143,12 @@ def _resolution(edge_length, n_vertices, area, linear, size, size_name, area_fac
     """Resolve (edge_length | n_vertices | neither) to a validated edge length."""
     if edge_length is not None and n_vertices is not None:
         raise ValueError("give either edge_length or n_vertices, not both")
+    finest = edge_length_for_vertices(MAX_VERTICES, area, linear, area_factor)
+    if finest > size:
+        # edges must fit the narrowest dimension, and edges that fine exceed the vertex limit: no valid mesh
+        raise ValueError(f"the geometry is too slender to mesh: edges must be at most the {size_name} ({size:g}), "
+                         f"and edges that short give more than {MAX_VERTICES} vertices (at least {finest:.3g} "
+                         "needed); make the narrowest dimension larger against the others")
     if n_vertices is not None:
         h = edge_length_for_vertices(_vertex_count("n_vertices", n_vertices), area, linear, area_factor)
         return min(h, size)
