@@ -823,6 +823,7 @@ class CoupledLoop:
         u_prev, lam_prev = None, None
         iters = 0
         cuts = 0
+        t_start = t_said = time.perf_counter()
         while True:
             trial = min(1.0, lam + dlam)
             s = ones + trial * (target - ones)
@@ -851,6 +852,11 @@ class CoupledLoop:
             self._last_stable = res.stable
             if lam >= 1.0:
                 break
+            now = time.perf_counter()
+            if now - t_said >= 10.0:       # a thin or strongly grown shell can take minutes here
+                t_said = now
+                self._say(f"initial equilibrium: growth fraction {lam:.3g} after {now - t_start:.0f} s "
+                          f"({iters} Newton iterations, {cuts} cuts)")
             dlam = min(1.0 - lam, 1.5 * dlam)
         self.u = u
         self.last_newton_iterations = iters

@@ -166,6 +166,19 @@ def spot_run(ball):
     return p, st, loop, initial, states, records
 
 
+def test_a_long_initial_equilibrium_reports_its_progress(ball, monkeypatch):
+    """Every 10 s the ramp says how far it got (here the clock advances 20 s per reading)."""
+    import femshell.coupled as coupled
+
+    clock = iter(range(0, 10**6, 20))
+    monkeypatch.setattr(coupled.time, "perf_counter", lambda: float(next(clock)))
+    said = []
+    CoupledLoop(ball, MechanochemicalModel(**SPOT), TimeStepping(t_final=1.0, ramp_ds=0.02),
+                c0=InitialSpot(amplitude=0.3, width=1.0), log=said.append)
+    fractions = [float(m.split("growth fraction ")[1].split()[0]) for m in said if "growth fraction" in m]
+    assert len(fractions) >= 2 and fractions == sorted(fractions) and 0 < fractions[0] and fractions[-1] < 1
+
+
 def test_spot_makes_an_outward_bulge_that_feeds_itself(ball, spot_run):
     p, st, loop, initial, states, records = spot_run
     top = top_vertex(ball)
