@@ -34,3 +34,15 @@ def finite_vector(name, value, size: int, what: str | None = None) -> np.ndarray
     if v is None or v.shape != (size,) or not np.all(np.isfinite(v)):
         raise ValueError(f"{name} must be {what or f'{size} finite numbers'}, got {value!r}")
     return v
+
+
+def real_array(name, value) -> np.ndarray:
+    """``value`` as a float array, or a ValueError naming ``name`` when it is complex or not numbers
+    (numpy would drop an imaginary part with only a warning)."""
+    a = np.asarray(value)
+    if np.iscomplexobj(a):
+        raise ValueError(f"{name} must be real numbers, got complex values (dtype {a.dtype})")
+    try:
+        return np.asarray(a, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers, got dtype {a.dtype}") from None

@@ -39,6 +39,8 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
+from ._checks import real_array
+
 __all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion"]
 
 
@@ -347,10 +349,10 @@ class ReactionDiffusion:
         """
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"time step dt must be a finite number > 0, got {dt}")
-        c = np.asarray(c, dtype=float)
+        c = real_array("c", c)
         if c.shape != (self.n_vertices,):
             raise ValueError(f"c must have shape ({self.n_vertices},), got {c.shape}")
-        P = np.asarray(source, dtype=float)
+        P = real_array("source", source)
         if P.ndim and P.shape != c.shape:
             raise ValueError(f"source must be a number or one value per vertex, shape ({self.n_vertices},), "
                              f"got shape {P.shape}")

@@ -28,6 +28,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import expit
 
+from ._checks import real_array
+
 __all__ = ["contractility", "stretch", "dstretch_dc", "element_average", "target_metric",
            "target_thickness", "target_curvature", "THICKNESS_MODES"]
 
@@ -49,7 +51,7 @@ def _check_params(lam_max, lam_min, b, c_star):
 
 
 def _as_finite(c, name="c"):
-    c = np.asarray(c, dtype=float)
+    c = real_array(name, c)
     bad = ~np.isfinite(c)
     if bad.any():
         first = np.unravel_index(np.flatnonzero(bad.ravel())[0], c.shape) if c.ndim else ()

@@ -106,6 +106,13 @@ def test_chemistry_and_growth_values(small_disk):
     for f in (contractility, stretch):
         with pytest.raises(ValueError, match="c_star .* must be a finite number, got nan"):
             f(np.zeros(3), c_star=np.nan)
+        # numpy would keep the real part with only a warning
+        with pytest.raises(ValueError, match=r"c must be real numbers, got complex values \(dtype complex128\)"):
+            f(np.array([0.1 + 1j]))
+    with pytest.raises(ValueError, match="c must be real numbers, got complex"):
+        rd.step(np.ones(m.n_vertices) * (1 + 1j), 0.1)
+    with pytest.raises(ValueError, match="source must be numbers, got dtype <U1"):
+        rd.step(np.ones(m.n_vertices), 0.1, source="x")
 
 
 def test_model_and_newton_argument_types(small_disk):
