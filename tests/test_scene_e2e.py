@@ -346,6 +346,25 @@ def test_a_step_switch_names_the_steepness(tmp_path, capsys):
     assert "growth.b" in err and "solver.ds_max" in err
 
 
+def test_continuation_resumed_on_the_switched_branch_ends_where_the_uninterrupted_one_does(tmp_path):
+    # paused after the first step of the switched branch (6), and exactly at the primary's stop value (2 + 3):
+    # the resumes went back down the branch (first) or could not start (second)
+    over = TINY["clamped-plate-buckling"]
+    assert run("clamped-plate-buckling", tmp_path / "u", overrides=over) == 0
+    ref = json.loads((tmp_path / "u" / "summary.json").read_text())["final"]
+    assert ref["amplitude"] > 1e-3                                   # buckled: on the switched branch
+    for name, pauses in (("a", [6]), ("b", [2, 3])):
+        out = tmp_path / name
+        assert run("clamped-plate-buckling", out, extra=["--max-steps", str(pauses[0])], overrides=over) == 0
+        for k in pauses[1:]:
+            assert run("clamped-plate-buckling", out, extra=["--resume", "--max-steps", str(k)], overrides=over) == 0
+        assert run("clamped-plate-buckling", out, extra=["--resume"], overrides=over) == 0
+        s = json.loads((out / "summary.json").read_text())
+        assert s["status"] == "done", (name, s["message"])
+        assert s["final"]["final_value"] == pytest.approx(ref["final_value"], rel=1e-9)
+        assert s["final"]["amplitude"] == pytest.approx(ref["amplitude"], rel=1e-6)
+
+
 def test_continuation_short_of_its_stop_says_so(tmp_path):
     # 2 steps of ds 1e-6 cannot reach a stop at strain 1e-3: the run is not "done"
     over = ["mesh.edge_length=0.4", "solver.stop=1e-3", "solver.max_steps=2", "solver.n_eigs=0",

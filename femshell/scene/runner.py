@@ -1097,7 +1097,7 @@ class ContinuationRunner(BaseRunner):
                     log=(lambda s: self.p.say(s)) if self.verbose else None)
 
     def _segment(self, primary):
-        from ..solvers.continuation import ContinuationError, continuation, switch_branch
+        from ..solvers.continuation import Branch, ContinuationError, continuation, switch_branch
 
         so = self.scene["solver"]
         label = self.cur_label
@@ -1136,12 +1136,20 @@ class ContinuationRunner(BaseRunner):
             return None
 
         try:
-            if primary and not resumed:
+            if resumed and stop is not None and math.isclose(self.lam, stop, rel_tol=1e-12, abs_tol=1e-300):
+                # paused exactly at the stop value: the branch is finished, nothing left to follow
+                self.resume_tangent = None
+                branch = Branch(label)
+                branch.status, branch.message = "lam_stop", f"reached parameter {stop:.6g}"
+            elif primary and not resumed:
                 self._seg_start = self.start
                 branch = continuation(self.problem, self.u, self.start, ds=so["ds"], lam_stop=stop, label=label,
                                       callback=callback, **opts)
             elif not resumed:
                 sp = self._switch_point()
+                # the switched branch's first step is measured from its branch point, not from where the
+                # primary branch ended (a resume takes its direction from that difference)
+                self.u, self.lam = np.asarray(sp.u, float), float(sp.parameter)
                 self._seg_start = sp.parameter
                 self.p.say(f"branch switching at {sp.label} {self.param} = {sp.parameter:.8g} "
                            f"(multiplicity {sp.multiplicity})")
