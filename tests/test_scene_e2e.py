@@ -426,6 +426,65 @@ def test_kill_9_loses_no_finished_step(uninterrupted, tmp_path):
     assert_same_run(uninterrupted, out)
 
 
+def _tree(path):
+    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()}
+
+
+def test_an_overwrite_stopped_while_it_starts_keeps_the_earlier_run(tmp_path):
+    """SIGTERM during the new run's initial equilibrium puts the earlier run back; a leftover of a
+    kill -9 at that moment (.femshell-replaced) is put back by the next command, not deleted."""
+    out = tmp_path / "run"
+    assert run("default", out, overrides=SPHERE_TINY) == 0
+    before = _tree(out)
+    # 4 000 vertices: an initial equilibrium of several seconds to stop
+    cmd = [sys.executable, "-m", "femshell.cli", "run", "default", "--out", str(out), "--overwrite",
+           "--set", "mesh.n_vertices=4000", "--set", "output.pictures=false"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        for line in proc.stdout:
+            if line.startswith("initial equilibrium"):
+                time.sleep(1.0)
+                os.kill(proc.pid, signal.SIGTERM)
+                break
+    finally:
+        if proc.poll() is None:
+            try:
+                proc.wait(timeout=120)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+    assert proc.returncode == 130
+    assert _tree(out) == before
+    # what a kill -9 at that moment leaves: the earlier run set aside, a frame of the new one
+    from femshell.scene.runner import RunDir
+
+    RunDir(out).set_aside()
+    (out / "series_000000.vtu").write_text("half a frame")
+    assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY) == 0     # finished: nothing to do
+    assert _tree(out) == before
+
+
+def test_resume_without_the_series_index_keeps_the_frames(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert run("default", out, extra=["--max-steps", "1"], overrides=SPHERE_TINY) == 0
+    (out / "series.pvd").unlink()
+    before = _tree(out)
+    assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY) == 2
+    assert "series.pvd is missing but 2 frames series_*.vtu are there" in capsys.readouterr().err
+    assert _tree(out) == before
+
+
+def test_overwrite_replaces_femshells_files_only(tmp_path):
+    out = tmp_path / "run"
+    assert run("default", out, overrides=SPHERE_TINY, pictures=True) == 0
+    mine = {"pictures/my_figure.png": b"mine", "series_final_by_hand.vtu": b"mine too", "notes.txt": b"notes"}
+    for name, data in mine.items():
+        (out / name).write_bytes(data)
+    assert run("default", out, extra=["--overwrite"], overrides=SPHERE_TINY) == 0
+    assert {k: v for k, v in _tree(out).items() if k in mine} == mine
+    assert not (out / "pictures" / "top.png").exists()          # the earlier run's picture went with it
+
+
 def test_unresolved_seed_is_warned_and_negative_c_star_refused(tmp_path, capsys):
     over = ["mesh.n_vertices=150", "solver.t_final=0.02", "initial.width=1e-3"]
     assert run("default", tmp_path / "thin", overrides=over) == 0

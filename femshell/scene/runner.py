@@ -45,6 +45,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import shutil
 import signal
 import sys
@@ -69,6 +70,9 @@ REPLACED = ".femshell-replaced"
 RUN_FILES = (SCENE_FILE, CHECKPOINT, CHECKPOINT + ".prev", fio.SUMMARY_NAME, f"{SERIES}.pvd", "branch.csv",
              "movie.gif", "movie.mp4")
 RUN_DIRS = ("pictures", "special")
+#: femshell's own files inside RUN_DIRS and its frames (a user's files there are left alone)
+RUN_DIR_FILES = re.compile(r"(top|side|bifurcation)(_\d{6}|_last)?\.png|(primary|switched)-\d+-\w+\.vtu")
+FRAME = re.compile(rf"{SERIES}_\d{{6}}\.vtu")
 #: keys that may change between a run and its --resume
 RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop"),
                      ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol")}
@@ -112,7 +116,7 @@ class RunDir:
 
     def has_run(self) -> bool:
         return self.path.is_dir() and (any((self.path / f).exists() for f in RUN_FILES)
-                                       or any(self.path.glob(f"{SERIES}_*.vtu")))
+                                       or any(FRAME.fullmatch(p.name) for p in self.path.glob(f"{SERIES}_*.vtu")))
 
     def describe(self) -> str:
         s = self.summary()
@@ -132,11 +136,16 @@ class RunDir:
         except (OSError, ValueError):
             return None
 
-    def _run_paths(self):
-        """femshell's files and folders of a run in the directory (never other files)."""
-        return ([self.path / f for f in RUN_FILES if (self.path / f).exists()]
-                + sorted(self.path.glob(f"{SERIES}_*.vtu"))
-                + [self.path / d for d in RUN_DIRS if (self.path / d).is_dir()])
+    def _run_paths(self, root=None):
+        """femshell's files of a run in the directory, relative to it (never a user's files, also not
+        inside pictures/ and special/)."""
+        root = self.path if root is None else root
+        out = [Path(f) for f in RUN_FILES if (root / f).exists()]
+        out += sorted(Path(p.name) for p in root.glob(f"{SERIES}_*.vtu") if FRAME.fullmatch(p.name))
+        for d in RUN_DIRS:
+            if (root / d).is_dir():
+                out += sorted(Path(d) / p.name for p in (root / d).iterdir() if RUN_DIR_FILES.fullmatch(p.name))
+        return out
 
     def set_aside(self):
         """Move an earlier run's files into ``DIR/.femshell-replaced`` (``--overwrite``).
@@ -147,11 +156,10 @@ class RunDir:
         that never started.
         """
         aside = self.path / REPLACED
-        if aside.exists():          # left by a run that was killed before it started
-            shutil.rmtree(aside)
         aside.mkdir()
         for p in self._run_paths():
-            p.rename(aside / p.name)
+            (aside / p).parent.mkdir(exist_ok=True)
+            (self.path / p).rename(aside / p)
 
     def put_back(self):
         """Undo :meth:`set_aside`: delete what the new run wrote, restore the earlier run."""
@@ -159,10 +167,21 @@ class RunDir:
         if not aside.is_dir():
             return
         for p in self._run_paths():
-            shutil.rmtree(p) if p.is_dir() else p.unlink()
-        for p in aside.iterdir():
-            p.rename(self.path / p.name)
-        aside.rmdir()
+            (self.path / p).unlink()
+        for p in self._run_paths(aside):
+            (self.path / p).parent.mkdir(exist_ok=True)
+            (aside / p).rename(self.path / p)
+        shutil.rmtree(aside)
+
+    def recover(self):
+        """An earlier run left in ``.femshell-replaced`` by a process killed while it started an
+        --overwrite: put it back (the new run never reached its first checkpoint, else the
+        directory would have been dropped), and say so."""
+        if not (self.path / REPLACED).is_dir():
+            return None
+        self.put_back()
+        return (f"{self.path}: put back the run that an interrupted --overwrite had set aside in "
+                f"{REPLACED}/")
 
     def start(self, scene):
         """The new run has its first accepted state: store its scene, drop a replaced run."""
@@ -195,8 +214,9 @@ class RunDir:
                     except PermissionError:
                         alive = True
                 if alive and pid != os.getpid():
-                    raise RunDirError(f"{self.path} is in use by a running femshell (pid {pid}); wait for it or "
-                                      f"stop it, or choose another --out") from None
+                    raise RunDirError(f"{self.path} is in use by a running femshell (pid {pid}, in {p}); wait for "
+                                      "it or stop it, or choose another --out (if no femshell runs there, the "
+                                      "lock is stale: delete that file)") from None
                 with contextlib.suppress(FileNotFoundError):
                     p.unlink()
         else:  # pragma: no cover
@@ -1361,6 +1381,9 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         return 0
 
     rd = RunDir(dest)
+    if (rd.path / REPLACED).is_dir():
+        with rd.lock():                     # (a live run there is refused by the lock)
+            print(rd.recover(), file=sys.stderr if quiet else stream)
     resume_from = None
     if rd.has_run() and not resume and not overwrite:
         raise RunDirError(f"{rd.path} already holds {rd.describe()}; use --resume to continue it, --overwrite to "
@@ -1381,6 +1404,12 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
                     raise RunDirError(f"{rd.path}: the scene differs from the one of the run there, so it cannot be "
                                       "resumed:\n  " + "\n  ".join(diffs) + "\n(resume with the same scene, or start "
                                       "a new run with --overwrite or another --out)")
+        frames = [p for p in rd.path.glob(f"{SERIES}_*.vtu") if FRAME.fullmatch(p.name)]
+        if frames and not (rd.path / f"{SERIES}.pvd").exists():
+            # the writer would start a new series over them
+            raise RunDirError(f"{rd.path}: {SERIES}.pvd is missing but {len(frames)} frames {SERIES}_*.vtu are "
+                              f"there; a resume would start a new series and replace them: put {SERIES}.pvd back, "
+                              "or move the frames elsewhere to resume with a new series")
         ck = rd.path / CHECKPOINT
         if not (ck.exists() or (rd.path / (CHECKPOINT + ".prev")).exists()):
             raise RunDirError(f"{rd.path}: no {CHECKPOINT} to resume from (the run there has no accepted state, "
@@ -1417,6 +1446,19 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         for w in check_mesh(mesh).warnings:     # a sliver or a poor triangle the run may stumble on
             print(f"warning: mesh {mesh.name}: {w}", file=sys.stderr if quiet else stream)
     progress = Progress(stream, interval=sc["output"]["progress_interval"], quiet=quiet)
+    old_term = None
+    with contextlib.suppress(ValueError):   # not in the main thread: no handler
+        # SIGTERM as Ctrl-C from here on: a run stopped while it starts still puts an earlier run back
+        old_term = signal.signal(signal.SIGTERM, signal.default_int_handler)
+    try:
+        return _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose)
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+
+
+def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose):
+    quiet = progress.quiet
     with rd.lock():
         if overwrite:
             rd.set_aside()                  # put back below if the new run does not start
