@@ -464,6 +464,20 @@ def test_an_overwrite_stopped_while_it_starts_keeps_the_earlier_run(tmp_path):
     assert _tree(out) == before
 
 
+def test_resume_after_scene_toml_was_edited_is_refused(tmp_path, capsys):
+    # the run's scene.toml edited (thickness 2 -> 1): resuming from it would continue another shell
+    out = tmp_path / "run"
+    assert run("default", out, extra=["--max-steps", "1"], overrides=SPHERE_TINY) == 0
+    text = (out / "scene.toml").read_text()
+    assert "thickness = 2.0" in text
+    (out / "scene.toml").write_text(text.replace("thickness = 2.0", "thickness = 1.0"))
+    before = _tree(out)
+    assert main(["run", "--out", str(out), "--resume", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "was made with another scene than the one given now" in err and "[shell] thickness: 2.0 in the run" in err
+    assert _tree(out) == before
+
+
 def test_resume_without_the_series_index_keeps_the_frames(tmp_path, capsys):
     out = tmp_path / "run"
     assert run("default", out, extra=["--max-steps", "1"], overrides=SPHERE_TINY) == 0

@@ -421,7 +421,7 @@ class BaseRunner:
         meta = {"kind": self.kind, "step": self.step, "series_time": self.series_time(),
                 "wall_s": self.wall_before + self.p.elapsed, "newton_total": self.newton_total,
                 "resumes": self.resumes, "scene": self.scene.name, "n_vertices": self.mesh.n_vertices,
-                "mesh": mesh_fingerprint(self.mesh)}
+                "mesh": mesh_fingerprint(self.mesh), "scene_toml": dump_toml(self.scene.data)}
         meta.update(self.extra_meta())
         fio.save_checkpoint(self.rd.path / CHECKPOINT, self.state(), meta)
         self.last_ckpt_step = self.step
@@ -1421,6 +1421,18 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         if resume_from[1].get("kind") != sc.kind:
             raise RunDirError(f"{ck}: a checkpoint of a {resume_from[1].get('kind')} run, but the scene runs "
                               f"{sc.kind}")
+        # the checkpoint's own scene: scene.toml in the directory may have been edited or deleted since
+        ck_scene = resume_from[1].get("scene_toml")
+        if ck_scene:
+            try:
+                old = validate(parse_scene(ck_scene, str(ck)), name=sc.name, label=str(ck), base_dir=rd.path).data
+            except SceneError:
+                old = None
+            diffs = _scene_differences(old, sc.data) if old is not None else []
+            if diffs:
+                raise RunDirError(f"{ck} was made with another scene than the one given now, so it cannot be "
+                                  "resumed:\n  " + "\n  ".join(diffs) + "\n(was scene.toml there edited? resume "
+                                  "with the run's scene, or start a new run with --overwrite or another --out)")
         summ = rd.summary()
         if summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step") \
                 and not _extends(summ, sc):
