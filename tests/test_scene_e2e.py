@@ -274,12 +274,14 @@ def test_run_directory_guards(tmp_path, capsys):
     (tmp_path / "afile").write_text("mine")
     assert run("default", tmp_path / "afile", overrides=tiny) == 2
     assert (tmp_path / "afile").read_text() == "mine"
-    # resuming on another mesh (the run's scene.toml deleted, so no scene comparison): refused, untouched
+    # resuming on another mesh (the run's scene.toml deleted: the checkpoint's own scene is compared): refused,
+    # untouched
     (out / "scene.toml").unlink()
     before = _files(out)
     capsys.readouterr()
     assert run("default", out, extra=["--resume"], overrides=["mesh.n_vertices=300", "solver.t_final=0.02"]) == 2
-    assert "was made on a mesh of" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "was made with another scene than the one given now" in err and "[mesh] n_vertices: " in err
     assert _files(out) == before
     # resuming without a checkpoint: refused (it used to start again from t = 0 over the frames)
     for f in out.glob("checkpoint.npz*"):

@@ -1436,8 +1436,11 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         summ = rd.summary()
         if summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step") \
                 and not _extends(summ, sc):
+            how = ("extend it with --set solver.t_final=... --resume" if sc.kind == "time" else
+                   "a finished continuation or load stepping is not extended: start a new run with --overwrite "
+                   "or another --out")
             print(f"{rd.path}: the run is already finished (status {summ['status']}, {summ['steps']} steps); "
-                  "nothing to do (extend it with --set solver.t_final=... --resume)", file=stream)
+                  f"nothing to do ({how})", file=stream)
             return 0
 
     mesh = make_mesh(sc)                    # scene errors of mesh files come before the directory is touched
