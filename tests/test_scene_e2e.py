@@ -466,6 +466,15 @@ def test_an_overwrite_stopped_while_it_starts_keeps_the_earlier_run(tmp_path):
     assert _tree(out) == before
 
 
+def test_resume_with_another_set_names_the_command_that_resumes(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert run("default", out, extra=["--max-steps", "1"], overrides=SPHERE_TINY) == 0
+    assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY + ["shell.thickness=1.5"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot be resumed" in err and f"femshell run --out {out} --resume, without a scene or --set" in err
+    assert main(["run", "--out", str(out), "--resume", "-q"]) == 0
+
+
 def test_resume_after_scene_toml_was_edited_is_refused(tmp_path, capsys):
     # the run's scene.toml edited (thickness 2 -> 1): resuming from it would continue another shell
     out = tmp_path / "run"

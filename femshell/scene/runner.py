@@ -1402,7 +1402,8 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
                 diffs = _scene_differences(old, sc.data)
                 if diffs:
                     raise RunDirError(f"{rd.path}: the scene differs from the one of the run there, so it cannot be "
-                                      "resumed:\n  " + "\n  ".join(diffs) + "\n(resume with the same scene, or start "
+                                      "resumed:\n  " + "\n  ".join(diffs) + "\n(resume with the run's own scene: "
+                                      f"femshell run --out {rd.path} --resume, without a scene or --set; or start "
                                       "a new run with --overwrite or another --out)")
         frames = [p for p in rd.path.glob(f"{SERIES}_*.vtu") if FRAME.fullmatch(p.name)]
         if frames and not (rd.path / f"{SERIES}.pvd").exists():
