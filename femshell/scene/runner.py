@@ -115,8 +115,12 @@ class RunDir:
         self.path = Path(path)
 
     def has_run(self) -> bool:
-        return self.path.is_dir() and (any((self.path / f).exists() for f in RUN_FILES)
-                                       or any(FRAME.fullmatch(p.name) for p in self.path.glob(f"{SERIES}_*.vtu")))
+        return self.path.is_dir() and (any((self.path / f).exists() for f in RUN_FILES) or bool(self.frames()))
+
+    def frames(self, root=None) -> list:
+        """The series' frame files (series_NNNNNN.vtu; not a user's series_*.vtu), sorted."""
+        root = self.path if root is None else root
+        return sorted(p for p in root.glob(f"{SERIES}_*.vtu") if FRAME.fullmatch(p.name))
 
     def describe(self) -> str:
         s = self.summary()
@@ -141,7 +145,7 @@ class RunDir:
         inside pictures/ and special/)."""
         root = self.path if root is None else root
         out = [Path(f) for f in RUN_FILES if (root / f).exists()]
-        out += sorted(Path(p.name) for p in root.glob(f"{SERIES}_*.vtu") if FRAME.fullmatch(p.name))
+        out += [Path(p.name) for p in self.frames(root)]
         for d in RUN_DIRS:
             if (root / d).is_dir():
                 out += sorted(Path(d) / p.name for p in (root / d).iterdir() if RUN_DIR_FILES.fullmatch(p.name))
@@ -338,6 +342,7 @@ class BaseRunner:
         self.resumes = 0
         self.last_frame_step = -1
         self.last_ckpt_step = -1
+        self._identity = None          # the checkpoint's mesh fingerprint and scene, made at the first one
 
     # --- to implement
     def initialise(self):
@@ -420,8 +425,10 @@ class BaseRunner:
     def checkpoint(self):
         meta = {"kind": self.kind, "step": self.step, "series_time": self.series_time(),
                 "wall_s": self.wall_before + self.p.elapsed, "newton_total": self.newton_total,
-                "resumes": self.resumes, "scene": self.scene.name, "n_vertices": self.mesh.n_vertices,
-                "mesh": mesh_fingerprint(self.mesh), "scene_toml": dump_toml(self.scene.data)}
+                "resumes": self.resumes, "scene": self.scene.name, "n_vertices": self.mesh.n_vertices}
+        if self._identity is None:          # what the run is made of does not change: computed once
+            self._identity = {"mesh": mesh_fingerprint(self.mesh), "scene_toml": dump_toml(self.scene.data)}
+        meta.update(self._identity)
         meta.update(self.extra_meta())
         fio.save_checkpoint(self.rd.path / CHECKPOINT, self.state(), meta)
         self.last_ckpt_step = self.step
@@ -1078,13 +1085,12 @@ class ContinuationRunner(BaseRunner):
 
     def final_status(self):
         so = self.scene["solver"]
-        stops = {"primary": so["stop"], "switched": so["switch_stop"] if so["switch_stop"] is not None else so["stop"]}
         # a branch that ran out of steps before the stop value it was given is not a finished study
-        short = [k for k, v in self.branch_status.items() if v["status"] == "max_steps" and stops.get(k) is not None]
+        short = [k for k, v in self.branch_status.items() if v["status"] == "max_steps" and self._stop(k) is not None]
         text = "; ".join(f"{k} branch: {v['message']}" for k, v in self.branch_status.items() if k not in short)
         if short:
             self.message = "; ".join(
-                f"{k} branch: stopped at solver.max_steps = {so['max_steps']} before its stop value {stops[k]:g}"
+                f"{k} branch: stopped at solver.max_steps = {so['max_steps']} before its stop value {self._stop(k):g}"
                 for k in short) + (": run again with a larger solver.max_steps (or a larger solver.ds) and "
                                    "--overwrite") + (f"; {text}" if text else "")
             return "max_steps_branch"
@@ -1116,6 +1122,11 @@ class ContinuationRunner(BaseRunner):
                     rtol=so["newton_rtol"] or 1e-8, backend=so["backend"],
                     log=(lambda s: self.p.say(s)) if self.verbose else None)
 
+    def _stop(self, label):
+        """The stop value of a branch ("primary" or "switched"; None: no stop value, max_steps only)."""
+        so = self.scene["solver"]
+        return so["switch_stop"] if label == "switched" and so["switch_stop"] is not None else so["stop"]
+
     def _segment(self, primary):
         from ..solvers.continuation import Branch, ContinuationError, continuation, switch_branch
 
@@ -1124,7 +1135,7 @@ class ContinuationRunner(BaseRunner):
         steps_done = sum(1 for r in self.segments if r.get("branch") == label and not r.get("special")
                          and r.get("step", 0) > 0)
         resumed = self.resume_tangent is not None
-        stop = so["stop"] if primary else (so["switch_stop"] if so["switch_stop"] is not None else so["stop"])
+        stop = self._stop(label)
         opts = self._options(steps_done)
         self.seg_offset = 1 if resumed else 0
         self._sp_seen = 0
@@ -1328,6 +1339,17 @@ RUNNERS = {"time": TimeRunner, "static": StaticRunner, "continuation": Continuat
 
 # ----------------------------------------------------------------------------- entry point
 
+def _differences_from(text, label, sc, base_dir) -> list:
+    """:func:`_scene_differences` of the scene TOML ``text`` (None or unreadable: none) against ``sc``."""
+    if not text:
+        return []
+    try:
+        old = validate(parse_scene(text, str(label)), name=sc.name, label=str(label), base_dir=base_dir).data
+    except SceneError:
+        return []
+    return _scene_differences(old, sc.data)
+
+
 def _scene_differences(old: dict, new: dict) -> list:
     diffs = []
     for sec in sorted(set(old) | set(new)):
@@ -1391,21 +1413,7 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
     if resume:
         if not rd.path.is_dir() or not rd.has_run():
             raise RunDirError(f"{rd.path}: nothing to resume (no femshell run there); run without --resume")
-        old_p = rd.path / SCENE_FILE
-        if old_p.is_file():
-            try:
-                old = parse_scene(old_p.read_text(encoding="utf-8"), str(old_p))
-                old = validate(old, name=sc.name, label=str(old_p), base_dir=rd.path).data
-            except SceneError:
-                old = None
-            if old is not None:
-                diffs = _scene_differences(old, sc.data)
-                if diffs:
-                    raise RunDirError(f"{rd.path}: the scene differs from the one of the run there, so it cannot be "
-                                      "resumed:\n  " + "\n  ".join(diffs) + "\n(resume with the run's own scene: "
-                                      f"femshell run --out {rd.path} --resume, without a scene or --set; or start "
-                                      "a new run with --overwrite or another --out)")
-        frames = [p for p in rd.path.glob(f"{SERIES}_*.vtu") if FRAME.fullmatch(p.name)]
+        frames = rd.frames()
         if frames and not (rd.path / f"{SERIES}.pvd").exists():
             # the writer would start a new series over them
             raise RunDirError(f"{rd.path}: {SERIES}.pvd is missing but {len(frames)} frames {SERIES}_*.vtu are "
@@ -1422,18 +1430,18 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         if resume_from[1].get("kind") != sc.kind:
             raise RunDirError(f"{ck}: a checkpoint of a {resume_from[1].get('kind')} run, but the scene runs "
                               f"{sc.kind}")
-        # the checkpoint's own scene: scene.toml in the directory may have been edited or deleted since
-        ck_scene = resume_from[1].get("scene_toml")
-        if ck_scene:
-            try:
-                old = validate(parse_scene(ck_scene, str(ck)), name=sc.name, label=str(ck), base_dir=rd.path).data
-            except SceneError:
-                old = None
-            diffs = _scene_differences(old, sc.data) if old is not None else []
+        # the checkpoint's own scene (scene.toml in the directory may have been edited or deleted since),
+        # then scene.toml
+        old_p = rd.path / SCENE_FILE
+        for label, text in ((ck, resume_from[1].get("scene_toml")),
+                            (old_p, old_p.read_text(encoding="utf-8") if old_p.is_file() else None)):
+            diffs = _differences_from(text, label, sc, rd.path)
             if diffs:
-                raise RunDirError(f"{ck} was made with another scene than the one given now, so it cannot be "
-                                  "resumed:\n  " + "\n  ".join(diffs) + "\n(was scene.toml there edited? resume "
-                                  "with the run's scene, or start a new run with --overwrite or another --out)")
+                raise RunDirError(f"{label}: the run there was made with another scene than the one given now, so it "
+                                  "cannot be resumed:\n  " + "\n  ".join(diffs) + "\n(resume with the run's own "
+                                  f"scene: femshell run --out {rd.path} --resume, without a scene or --set, after "
+                                  "putting back its scene.toml if that was edited; or start a new run with "
+                                  "--overwrite or another --out)")
         summ = rd.summary()
         if summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step") \
                 and not _extends(summ, sc):
