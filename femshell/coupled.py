@@ -104,6 +104,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
+from ._interrupts import committing, step_scope
 from ._checks import finite as _finite, finite_vector
 from .chemistry import ReactionDiffusion, curvature_source
 from .geometry import element_to_vertex, mean_curvature
@@ -987,53 +988,54 @@ class CoupledLoop:
             dt = h * factor
             self._say(f"  step {self.step + 1} t = {self.t:.6g}: cut to dt = {dt:.3g} ({reason})")
 
-        # accept
-        x_old = points
-        c_old = self.c
-        self.c = c_new
-        # a snap is no trend: the secant through it would predict a second jump
-        self._u_prev, self._h_prev = (None, 0.0) if snapped else (self.u, h)
-        self.n_snaps += int(snapped)
-        self.u = res.u
-        self.s = s_new
-        self.t = st.t_final if last else self.t + h
-        self.step += 1
-        self.last_newton_iterations = res.iterations
-        self.newton_total += res.iterations
-        self._last_stable = res.stable
-        self._last_ds = ds
-        was_elliptic = self.non_elliptic == 0
-        self._update_curvature()
-        if was_elliptic:
-            self._say_non_elliptic()
-        c_scale = max(float(np.max(np.abs(self.c))) if len(self.c) else 0.0,
-                      1e-2 * p.c_max if math.isfinite(p.c_max) else 0.0, 1e-300)
-        rate_c = float(np.max(np.abs(self.c - c_old))) / (h * c_scale) if len(self.c) else 0.0
-        rate_x = float(np.max(np.abs(self.points - x_old))) / (h * self._length)
-        self._last_rates = (rate_c, rate_x)
-        if rate_c < st.stationary_rate_c and rate_x < st.stationary_rate_x:
-            self.stationary_count += 1
-        else:
-            self.stationary_count = 0
-        if st.stationary_pattern_time > 0:
-            self._follow_pattern()
-        # next step: grow while Δs stays small, never beyond a step that had to be cut,
-        # and within the stability limit of the staggering (module docstring)
-        grow = st.grow if ds <= 0 else min(st.grow, st.safety * st.ds_max / ds)
-        nxt = h * max(grow, 0.1)
-        if cuts:
-            nxt = min(nxt, h)
-        self._last_gain = feedback_gain(self.c - c_old, self.params.source(self.H_vertex) - source)
-        if st.feedback_amplification > 0:
-            nxt = min(nxt, feedback_step_limit(self._last_gain, p.beta, st.feedback_amplification,
-                                               exponential=p.D == 0))
-        self.dt = float(min(st.dt_max, max(st.dt_min, nxt)))
-        rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
-        self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
-                  f"(+{res.quasi_newton_iterations} quasi) "
-                  f"cuts {cuts} max c {rec.max_c:.4g} max H {rec.max_H:.4g} ds {ds:.3g} "
-                  f"spots {rec.n_spots} {rec.wall_s:.2f}s{' snapped' if snapped else ''}")
-        return rec
+        # accept: all at once (a Ctrl-C here would leave half a step: c new, rest state old)
+        with committing():
+            x_old = points
+            c_old = self.c
+            self.c = c_new
+            # a snap is no trend: the secant through it would predict a second jump
+            self._u_prev, self._h_prev = (None, 0.0) if snapped else (self.u, h)
+            self.n_snaps += int(snapped)
+            self.u = res.u
+            self.s = s_new
+            self.t = st.t_final if last else self.t + h
+            self.step += 1
+            self.last_newton_iterations = res.iterations
+            self.newton_total += res.iterations
+            self._last_stable = res.stable
+            self._last_ds = ds
+            was_elliptic = self.non_elliptic == 0
+            self._update_curvature()
+            if was_elliptic:
+                self._say_non_elliptic()
+            c_scale = max(float(np.max(np.abs(self.c))) if len(self.c) else 0.0,
+                          1e-2 * p.c_max if math.isfinite(p.c_max) else 0.0, 1e-300)
+            rate_c = float(np.max(np.abs(self.c - c_old))) / (h * c_scale) if len(self.c) else 0.0
+            rate_x = float(np.max(np.abs(self.points - x_old))) / (h * self._length)
+            self._last_rates = (rate_c, rate_x)
+            if rate_c < st.stationary_rate_c and rate_x < st.stationary_rate_x:
+                self.stationary_count += 1
+            else:
+                self.stationary_count = 0
+            if st.stationary_pattern_time > 0:
+                self._follow_pattern()
+            # next step: grow while Δs stays small, never beyond a step that had to be cut,
+            # and within the stability limit of the staggering (module docstring)
+            grow = st.grow if ds <= 0 else min(st.grow, st.safety * st.ds_max / ds)
+            nxt = h * max(grow, 0.1)
+            if cuts:
+                nxt = min(nxt, h)
+            self._last_gain = feedback_gain(self.c - c_old, self.params.source(self.H_vertex) - source)
+            if st.feedback_amplification > 0:
+                nxt = min(nxt, feedback_step_limit(self._last_gain, p.beta, st.feedback_amplification,
+                                                   exponential=p.D == 0))
+            self.dt = float(min(st.dt_max, max(st.dt_min, nxt)))
+            rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
+            self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
+                      f"(+{res.quasi_newton_iterations} quasi) "
+                      f"cuts {cuts} max c {rec.max_c:.4g} max H {rec.max_H:.4g} ds {ds:.3g} "
+                      f"spots {rec.n_spots} {rec.wall_s:.2f}s{' snapped' if snapped else ''}")
+            return rec
 
     def record(self, dt: float = 0.0, cuts: int = 0, wall_s: float = 0.0, snapped: bool = False) -> StepRecord:
         """The :class:`StepRecord` of the current state."""
@@ -1101,16 +1103,17 @@ class CoupledLoop:
                 if wall_time is not None and time.perf_counter() - t0 >= wall_time:
                     status, message = "wall_time", f"stopped after {time.perf_counter() - t0:.1f} s (wall_time)"
                     break
-                last = self.advance()
-                k += 1
-                dirty = True
-                if keep_records:
-                    records.append(last)
-                if callback is not None:
-                    callback(last, self)
-                if checkpoint is not None and k % int(checkpoint_every) == 0:
-                    checkpoint(self.state_dict(), last)
-                    dirty = False
+                with step_scope():      # a Ctrl-C once the step commits waits for its callback and checkpoint
+                    last = self.advance()
+                    k += 1
+                    dirty = True
+                    if keep_records:
+                        records.append(last)
+                    if callback is not None:
+                        callback(last, self)
+                    if checkpoint is not None and k % int(checkpoint_every) == 0:
+                        checkpoint(self.state_dict(), last)
+                        dirty = False
         except CoupledError as exc:
             status, message = "failed", str(exc)
             self._say(f"coupled loop stopped: {exc}")

@@ -327,6 +327,32 @@ def test_ctrl_c_mid_step_ends_on_the_last_accepted_state_checkpointed(ball, spot
     assert len(saved) == 1 and saved[0]["step"] == 3 and np.array_equal(saved[0]["c"], loop.c)
 
 
+def test_ctrl_c_while_a_step_commits_finishes_the_step_then_stops(ball, spot_run, monkeypatch):
+    """A real SIGINT between the assignments of an accepted step (c and u new, H not yet) is held:
+    the step is committed whole, reported, checkpointed, and then the run stops."""
+    import signal
+
+    p, st, loop, initial, states, records = spot_run
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+    real = CoupledLoop._update_curvature
+    fired = []
+
+    def signal_inside_the_commit(self):
+        if not fired:
+            fired.append(1)
+            signal.raise_signal(signal.SIGINT)
+        real(self)
+
+    monkeypatch.setattr(CoupledLoop, "_update_curvature", signal_inside_the_commit)
+    saved, seen = [], []
+    res = lp.run(callback=lambda rec, lo: seen.append(rec.step), checkpoint=lambda state, rec: saved.append(state))
+    assert fired and res.status == "interrupted" and res.steps == 1 and seen == [3]
+    assert np.array_equal(lp.c, loop.c) and np.array_equal(lp.u, loop.u)     # = step 3 of the fixture
+    assert np.array_equal(lp.H_vertex, loop.H_vertex) and lp.dt == loop.dt
+    assert len(saved) == 1 and saved[0]["step"] == 3 and np.array_equal(saved[0]["u"], loop.u)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def test_a_failed_step_names_a_membrane_compressed_past_its_ellipticity_limit(ball, spot_run):
     """The sphere shrunk to 0.8 of its radius (equibiaxial stretch 0.8 < 0.866, SVK at ν = 0.5): the loop
     counts the non-elliptic elements and a failed step says so; with the neo-Hookean law it does not."""

@@ -189,6 +189,32 @@ def test_ctrl_c_checkpoints_and_resumes(uninterrupted, tmp_path, monkeypatch):
     assert_same_run(uninterrupted, out)
 
 
+def test_ctrl_c_while_a_frame_is_written_keeps_that_frame(uninterrupted, tmp_path, monkeypatch):
+    """SIGINT arriving while step 2's frame is written: the frame and the checkpoint of step 2 are
+    written before the run stops, and the resumed run has every frame of the uninterrupted one."""
+    from femshell import io as fio
+
+    out = tmp_path / "run"
+    real = fio.TimeSeriesWriter.write
+    calls = {"n": 0}
+
+    def signalled(self, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:                   # frames of t = 0, step 1, step 2
+            signal.raise_signal(signal.SIGINT)
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(fio.TimeSeriesWriter, "write", signalled)
+    assert run("default", out, overrides=RESUME) == 130
+    assert json.loads((out / "summary.json").read_text())["steps"] == 2
+    assert load_checkpoint(out / "checkpoint.npz")[1]["step"] == 2
+    assert len(read_pvd(out / "series.pvd")) == 3
+    monkeypatch.setattr(fio.TimeSeriesWriter, "write", real)
+    assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
+    assert_same_run(uninterrupted, out)
+    assert [t for t, _ in read_pvd(out / "series.pvd")] == [t for t, _ in read_pvd(uninterrupted / "series.pvd")]
+
+
 def test_failed_step_stops_with_checkpoint_and_no_nan(tmp_path, monkeypatch):
     from femshell.coupled import CoupledError, CoupledLoop
 

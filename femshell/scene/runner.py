@@ -24,7 +24,9 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
 * A checkpoint is written after every ``output.checkpoint_every`` accepted steps (1 by
   default): ``kill -9`` loses at most the step in progress. Ctrl-C (SIGINT) and SIGTERM
   stop after writing a checkpoint of the last accepted state and a summary with status
-  "interrupted" (exit code 130).
+  "interrupted" (exit code 130). One that arrives once a step has begun to commit waits
+  until that step, its frame and its checkpoint are written (:mod:`femshell._interrupts`);
+  a second one stops at once.
 * ``--resume`` continues from the checkpoint; frames written after it are dropped and
   written again. The scene must be the one in ``DIR/scene.toml`` except for
   ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop``,
@@ -55,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import io as fio
+from .._interrupts import committing, step_scope
 from .build import load_scene, make_mesh, plan, shell_parts, stretch_field, time_loop
 from .schema import Scene, SceneError, dump_toml, parse_scene, validate
 
@@ -404,8 +407,10 @@ class BaseRunner:
                 self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps (--max-steps); "
                                                        "continue with --resume")
                 return
-            text, frac = self.advance()
-            self.accepted(text, frac)
+            with step_scope():              # a Ctrl-C once the step commits waits for its frame and checkpoint
+                text, frac = self.advance()
+                with committing():
+                    self.accepted(text, frac)
 
     # --- shared
     def accepted(self, text, fraction):
@@ -1141,6 +1146,10 @@ class ContinuationRunner(BaseRunner):
         self._sp_seen = 0
 
         def callback(branch, row):
+            with committing():              # the branch's point, its row, frame and checkpoint together
+                return _accept_point(branch, row)
+
+        def _accept_point(branch, row):
             rows = list(branch.rows)[self.seg_offset:]
             self.cur_rows = [dict(r, branch=label) for r in rows]
             self.prev = (self.u, self.lam)

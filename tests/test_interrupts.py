@@ -1,0 +1,44 @@
+"""Ctrl-C held while a step commits (femshell._interrupts)."""
+
+import signal
+
+import pytest
+
+from femshell._interrupts import committing, step_scope
+
+
+def test_a_signal_in_a_commit_is_raised_at_the_end_of_the_step():
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with step_scope():
+            with committing():
+                signal.raise_signal(signal.SIGINT)
+                done.append("commit")
+            done.append("bookkeeping")                # still held: the caller records the step
+    assert done == ["commit", "bookkeeping"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_commit_alone_raises_at_its_end_and_a_second_signal_at_once():
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with committing():
+            signal.raise_signal(signal.SIGINT)
+            done.append("commit")
+    assert done == ["commit"]
+    with pytest.raises(KeyboardInterrupt):
+        with committing():
+            signal.raise_signal(signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)       # pressed twice: out now
+            done.append("never")
+    assert done == ["commit"] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_before_the_commit_a_step_stays_interruptible():
+    with pytest.raises(KeyboardInterrupt):
+        with step_scope():
+            signal.raise_signal(signal.SIGINT)
+            pytest.fail("not interrupted")
+    with step_scope():
+        with committing():
+            pass                                      # nothing pending: nothing raised
