@@ -46,3 +46,19 @@ def real_array(name, value) -> np.ndarray:
         return np.asarray(a, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be numbers, got dtype {a.dtype}") from None
+
+
+def surface(points, triangles) -> tuple[np.ndarray, np.ndarray]:
+    """``(points, triangles)`` as float (n, 3) and integer (m, 3) arrays whose indices are vertices,
+    or a ValueError naming what is wrong (numpy would read a negative index as counting from the end)."""
+    pts = real_array("points", points)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
+    tri = np.asarray(triangles)
+    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.dtype.kind not in "iu"):
+        raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}, dtype {tri.dtype}")
+    if tri.size and tri.min() < 0:
+        raise ValueError(f"triangles hold a negative vertex index ({tri.min()}); indices run from 0")
+    if tri.size and tri.max() >= len(pts):
+        raise ValueError(f"triangles index vertex {tri.max()} but there are only {len(pts)} points")
+    return pts, tri

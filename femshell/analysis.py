@@ -106,10 +106,10 @@ def spot_radius(area_low: float, n_spots: int) -> float:
     >>> round(spot_radius(3 * math.pi * 4.0, 3), 12)      # three disks of radius 2
     2.0
     """
-    if n_spots <= 0:
+    n_spots = _count("n_spots", n_spots, 0, 2**62)
+    area_low = finite("area_low", area_low, 0.0)
+    if n_spots == 0:
         return float("nan")
-    if area_low < 0:
-        raise ValueError(f"area_low must be >= 0, got {area_low}")
     return math.sqrt(area_low / (math.pi * n_spots))
 
 
@@ -122,7 +122,9 @@ def spot_spacing(area_total: float, area_low: float, n_spots: int) -> float:
     >>> round(spot_spacing(4 * math.pi * 9.0, 4 * math.pi * 4.0, 4), 12)   # shares of radius 3, spots of 2
     2.0
     """
-    if n_spots <= 0:
+    n_spots = _count("n_spots", n_spots, 0, 2**62)
+    area_total, area_low = finite("area_total", area_total, 0.0), finite("area_low", area_low, 0.0)
+    if n_spots == 0:
         return float("nan")
     if not (0 <= area_low <= area_total * (1 + 1e-12)):
         raise ValueError(f"need 0 <= area_low <= area_total, got {area_low} and {area_total}")
@@ -217,7 +219,7 @@ class Region:
     ``area`` and ``perimeter`` are exact for the P1 interpolant (length², length);
     ``centroid`` (3,) is the area-weighted centre of its (partial) triangles;
     ``aspect`` = √(λ1/λ2) of the second moment in its mean tangent plane (1 for a disk);
-    ``isoperimetric`` = perimeter² / (4π area) (1 for a disk); ``inscribed_radius`` r_in
+    ``isoperimetric`` = perimeter² / (4π area) (1 for a flat disk, 1 − A/(4πR²) for a cap of a sphere of radius R); ``inscribed_radius`` r_in
     (length) and ``elongation`` A/(π r_in²) (1 for a disk, a/b for an ellipse); ``kind``
     "spot" or "ridge" (elongation above the threshold).
     """
@@ -299,6 +301,8 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
         Components with A/(π r_in²) above this are ridges (see the module docstring).
     """
     pts, tri = _mesh(points, triangles)
+    if len(pts) and not len(tri):
+        raise ValueError(f"no triangles for the {len(pts)} points: the measures need a surface")
     n = len(pts)
     cv = _field(c, n, "c")
     c_star = finite("c_star", c_star)
@@ -375,7 +379,7 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
         area_low += A
     N = len(regions)
     n_ridges = sum(r.kind == "ridge" for r in regions)
-    return PatternMeasures(N, n_ridges, area_low, area_total, area_low / area_total if area_total > 0 else 0.0,
+    return PatternMeasures(N, n_ridges, area_low, area_total, min(area_low / area_total, 1.0) if area_total > 0 else 0.0,
                            spot_radius(area_low, N), spot_spacing(area_total, min(area_low, area_total), N),
                            regions, ignored)
 
@@ -404,6 +408,7 @@ def same_pattern(a: PatternMeasures, b: PatternMeasures, tol: float = 0.02) -> b
     >>> same_pattern(a, b), same_pattern(a, c)
     (True, False)
     """
+    tol = finite("tol", tol, 0.0)
     if (a.n_spots, a.n_ridges, len(a.regions)) != (b.n_spots, b.n_ridges, len(b.regions)):
         return False
     if not a.regions:

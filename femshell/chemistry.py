@@ -39,7 +39,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
-from ._checks import real_array
+from ._checks import finite, real_array
 
 __all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion"]
 
@@ -53,7 +53,9 @@ def _check_mesh(points, triangles):
         pts = np.column_stack([pts, np.zeros(len(pts))])
     if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
         raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}, dtype {tri.dtype}")
-    if tri.size and (tri.min() < 0 or tri.max() >= len(pts)):
+    if tri.size and tri.min() < 0:
+        raise ValueError(f"triangles hold a negative vertex index ({tri.min()}); indices run from 0")
+    if tri.size and tri.max() >= len(pts):
         raise ValueError(f"triangles index vertex {tri.max()} but there are only {len(pts)} points")
     return pts, tri
 
@@ -101,8 +103,12 @@ class P1Assembler:
         tri = np.asarray(triangles)
         if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
             raise ValueError(f"triangles must be an (m, 3) integer array, got {tri.shape} {tri.dtype}")
+        if isinstance(n_vertices, bool) or not isinstance(n_vertices, (int, np.integer)) or n_vertices < 1:
+            raise ValueError(f"n_vertices must be an integer >= 1, got {n_vertices!r}")
         n = int(n_vertices)
-        if tri.size and (tri.min() < 0 or tri.max() >= n):
+        if tri.size and tri.min() < 0:
+            raise ValueError(f"triangles hold a negative vertex index ({tri.min()}); indices run from 0")
+        if tri.size and tri.max() >= n:
             raise ValueError(f"triangles index vertex {tri.max()} but n_vertices = {n}")
         self.triangles = tri.astype(np.int64)
         self.n_vertices = n
@@ -164,6 +170,8 @@ class P1Assembler:
     def mass_lumped(self, points):
         """Lumped mass: vertex area = ⅓ of the adjacent triangle areas (length²), shape (n,)."""
         pts, tri = _check_mesh(points, self.triangles)
+        if len(pts) != self.n_vertices:
+            raise ValueError(f"expected {self.n_vertices} points, got {len(pts)}")
         e, twice_area = _edges_and_areas(pts, tri)
         return np.bincount(self._vertex_of, weights=np.repeat(twice_area / 6.0, 3), minlength=self.n_vertices)
 
@@ -200,14 +208,16 @@ def curvature_source(H, w: float = 15.0, Hs: float = 0.05):
     >>> curvature_source(np.array([-1.0, 0.0, 0.05, 1e9]))
     array([0.   , 0.   , 0.375, 0.75 ])
     """
-    if not (np.isfinite(Hs) and Hs > 0):
-        raise ValueError(f"Hs (saturation curvature) must be a finite number > 0, got {Hs}")
-    if not (np.isfinite(w) and w >= 0):
-        raise ValueError(f"w (production rate) must be a finite number >= 0, got {w}")
-    H = np.asarray(H, dtype=float)
+    Hs = finite("Hs (saturation curvature)", Hs, 0.0, lo_open=True)
+    w = finite("w (production rate)", w, 0.0)
+    H = real_array("H", H)
+    if np.isnan(H).any():
+        raise ValueError(f"H has {int(np.isnan(H).sum())} NaN value(s)")
     Hp = np.maximum(H, 0.0)
-    # w Hp Hs / (Hs + Hp): same value, no inf/inf for huge H
-    return w * Hs * (Hp / (Hs + Hp))
+    # w Hs · Hp / (Hs + Hp): the same value without overflow for huge H; H = +inf saturates
+    with np.errstate(invalid="ignore"):
+        ratio = np.where(np.isposinf(Hp), 1.0, Hp / (Hs + Hp))
+    return w * Hs * ratio
 
 
 class ReactionDiffusion:
@@ -222,8 +232,9 @@ class ReactionDiffusion:
 
         c⁺ = c e^{−β dt} + P (1 − e^{−β dt}) / β      (c + dt P when β = 0);
 
-    no stiffness matrix is assembled (``stiffness`` stays ``None``). Both are exact
-    for a source P held constant over the step, the second also in time.
+    no stiffness matrix is assembled (``stiffness`` stays ``None``). Both hold the source P
+    constant over the step; with it the D = 0 update is exact in time, implicit Euler is
+    first-order accurate.
 
     Unconditional stability and c ≥ 0. Let A = M (1 + β dt) + dt D K. K is symmetric
     positive semi-definite with K 1 = 0, so in the M-inner product the step
@@ -284,12 +295,10 @@ class ReactionDiffusion:
 
     def __init__(self, triangles, n_vertices: int, D: float = 0.0, beta: float = 1.0, points=None,
                  backend: str = "auto", nonnegative: bool = True):
-        if not (np.isfinite(D) and D >= 0):
-            raise ValueError(f"diffusion coefficient D must be a finite number >= 0, got {D}")
-        if not (np.isfinite(beta) and beta >= 0):
-            raise ValueError(f"degradation rate beta must be a finite number >= 0, got {beta}")
-        self.D = float(D)
-        self.beta = float(beta)
+        self._factor = None
+        self._factor_dt = None
+        self.D = D
+        self.beta = beta
         self.backend = backend
         self.nonnegative = bool(nonnegative)
         self.assembler = P1Assembler(triangles, n_vertices)
@@ -301,11 +310,29 @@ class ReactionDiffusion:
         self.n_steps = 0
         self.solve_time = 0.0
         self._points = None
-        self._factor = None
-        self._factor_dt = None
         self._warned = False
         if points is not None:
             self.set_geometry(points)
+
+    @property
+    def D(self) -> float:
+        """Diffusion coefficient, length²/time; setting it refactorises at the next step."""
+        return self._D
+
+    @D.setter
+    def D(self, value):
+        self._D = finite("diffusion coefficient D", value, 0.0)
+        self._factor_dt = None
+
+    @property
+    def beta(self) -> float:
+        """Degradation rate, 1/time; setting it refactorises at the next step."""
+        return self._beta
+
+    @beta.setter
+    def beta(self, value):
+        self._beta = finite("degradation rate beta", value, 0.0)
+        self._factor_dt = None
 
     def set_geometry(self, points):
         """Move to a new surface geometry (same triangles); K, M and the factor are updated lazily."""
@@ -362,6 +389,10 @@ class ReactionDiffusion:
         if self.nonnegative and c.min() < 0:
             # the clip keeps every step's output >= 0; a negative input is the caller's, not the mesh's
             raise ValueError(f"c must be >= 0 (nonnegative=True), got min {c.min():.3g} at vertex {int(c.argmin())}")
+        if self.nonnegative and P.min() < 0:
+            # a sink would be cut off by the clip, not integrated: say so rather than blame the mesh
+            raise ValueError(f"source must be >= 0 with nonnegative=True (c >= 0 holds only for a non-negative "
+                             f"source), got min {P.min():.3g}; pass nonnegative=False for a signed field")
         if points is not None:
             self.set_geometry(points)
         t0 = time.perf_counter()

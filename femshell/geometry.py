@@ -22,29 +22,34 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._checks import surface
+
 
 def triangle_area_vectors(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """½ (x1 − x0) × (x2 − x0): area times unit normal, (m, 3)."""
+    points, triangles = surface(points, triangles)
     x = points[triangles]
     return 0.5 * np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
 
 
 def triangle_areas(points, triangles) -> np.ndarray:
+    """Areas (m,), length²."""
     return np.linalg.norm(triangle_area_vectors(points, triangles), axis=1)
 
 
 def face_normals(points, triangles) -> np.ndarray:
-    """Unit normals (m, 3), oriented by the vertex order (counter-clockwise seen from the normal)."""
+    """Unit normals (m, 3), oriented by the vertex order (counter-clockwise seen from the normal);
+    zero for a triangle of zero area, which has none."""
     av = triangle_area_vectors(points, triangles)
-    return av / np.linalg.norm(av, axis=1)[:, None]
+    return av / np.maximum(np.linalg.norm(av, axis=1), 1e-300)[:, None]
 
 
 def vertex_normals(points, triangles) -> np.ndarray:
-    """Area-weighted unit vertex normals (n, 3)."""
+    """Area-weighted unit vertex normals (n, 3); zero at a vertex in no triangle of non-zero area."""
+    points, triangles = surface(points, triangles)
     av = triangle_area_vectors(points, triangles)
-    n = np.zeros((len(points), 3))
-    for k in range(3):
-        np.add.at(n, triangles[:, k], av)
+    n = np.column_stack([np.bincount(triangles.ravel(), np.repeat(av[:, i], 3), minlength=len(points))
+                         for i in range(3)])
     return n / np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
 
 
@@ -69,7 +74,17 @@ def fold_angles(points, triangles, edge_faces) -> np.ndarray:
 
 
 def element_to_vertex(values: np.ndarray, points, triangles) -> np.ndarray:
-    """Area-weighted average of per-triangle values at each vertex: Σ A_f v_f / Σ A_f."""
+    """Area-weighted average of per-triangle values at each vertex: Σ A_f v_f / Σ A_f (n,);
+    0 at a vertex in no triangle of non-zero area.
+
+    >>> pts = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    >>> element_to_vertex(np.array([1.0, 3.0]), pts, np.array([[0, 1, 2], [1, 3, 2]]))
+    array([1., 2., 2., 3.])
+    """
+    points, triangles = surface(points, triangles)
+    values = np.asarray(values, dtype=float)
+    if values.shape != (len(triangles),):
+        raise ValueError(f"values must be one number per triangle, shape ({len(triangles)},), got {values.shape}")
     area = triangle_areas(points, triangles)
     n = len(points)
     num = np.zeros(n)
@@ -86,10 +101,10 @@ def _metric_determinant(a, b):
     if a.ndim != 3 or a.shape[1:] != (2, 2) or b.shape != a.shape:
         raise ValueError(f"fundamental forms a and b must both have shape (m, 2, 2), got {a.shape} and {b.shape}")
     det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
-    bad = ~(det > 0)
+    bad = ~((det > 0) & (a[:, 0, 0] > 0))      # with det > 0, a11 > 0 makes both eigenvalues positive
     if bad.any():
         raise ValueError(f"{bad.sum()} of {len(det)} first fundamental forms a are not positive definite "
-                         f"(det(a) <= 0 or not finite, first at element {np.flatnonzero(bad)[0]}): "
+                         f"(det(a) <= 0, a11 <= 0 or not finite, first at element {np.flatnonzero(bad)[0]}): "
                          "degenerate (collapsed) triangles")
     return a, b, det
 

@@ -50,6 +50,17 @@ def _check_params(lam_max, lam_min, b, c_star):
         raise ValueError(f"b (steepness of the contractility switch) must be a finite number > 0, got {b}")
 
 
+def _reference(lam0, lam_max, lam_min, b, c_star) -> float:
+    """Λ0 (default Λmax) checked, with the other parameters."""
+    _check_params(lam_max, lam_min, b, c_star)
+    if lam0 is None:
+        return lam_max
+    if isinstance(lam0, bool) or not isinstance(lam0, (int, float, np.integer, np.floating)) \
+            or not (np.isfinite(lam0) and lam0 > 0):
+        raise ValueError(f"lam0 (Λ0, the reference contractility) must be a finite number > 0, got {lam0!r}"[:200])
+    return lam0
+
+
 def _as_finite(c, name="c"):
     c = real_array(name, c)
     bad = ~np.isfinite(c)
@@ -88,7 +99,8 @@ def contractility(c, lam_max: float = 15.0, lam_min: float = 10.0, b: float = 10
     """
     _check_params(lam_max, lam_min, b, c_star)
     c = _as_finite(c)
-    return lam_min + (lam_max - lam_min) * expit(b * (c_star - c))
+    with np.errstate(over="ignore"):          # b (c* − c) = ±inf: expit gives the right limit, 0 or 1
+        return lam_min + (lam_max - lam_min) * expit(b * (c_star - c))
 
 
 def stretch(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: float = 10.0,
@@ -103,10 +115,7 @@ def stretch(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: float 
     >>> float(stretch(-1e3, b=1000)), float(stretch(1e3, b=1000))
     (1.0, 1.5)
     """
-    _check_params(lam_max, lam_min, b, c_star)
-    lam0 = lam_max if lam0 is None else lam0
-    if not (np.isfinite(lam0) and lam0 > 0):
-        raise ValueError(f"lam0 (Λ0, the reference contractility) must be a finite number > 0, got {lam0}")
+    lam0 = _reference(lam0, lam_max, lam_min, b, c_star)
     return lam0 / contractility(c, lam_max, lam_min, b, c_star)
 
 
@@ -125,14 +134,13 @@ def dstretch_dc(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: fl
     >>> float(dstretch_dc(0.1))      # b (Λmax − Λmin) / 4 · Λmax / 12.5² at c = c*
     12.0
     """
-    _check_params(lam_max, lam_min, b, c_star)
-    lam0 = lam_max if lam0 is None else lam0
-    if not (np.isfinite(lam0) and lam0 > 0):
-        raise ValueError(f"lam0 (Λ0, the reference contractility) must be a finite number > 0, got {lam0}")
+    lam0 = _reference(lam0, lam_max, lam_min, b, c_star)
     lam = contractility(c, lam_max, lam_min, b, c_star)
-    x = b * (c_star - np.asarray(c, dtype=float))
-    dlam = -b * (lam_max - lam_min) * expit(x) * expit(-x)
-    return -lam0 / lam**2 * dlam
+    with np.errstate(over="ignore"):
+        x = b * (c_star - np.asarray(c, dtype=float))
+        # b last: far from c* the product σ(x) σ(−x) is 0, and b · 0 = 0 even for a huge b
+        dlam = -((lam_max - lam_min) * expit(x) * expit(-x)) * b
+        return -lam0 / lam**2 * dlam
 
 
 def element_average(c_vertices, triangles):
@@ -157,8 +165,10 @@ def element_average(c_vertices, triangles):
     tri = np.asarray(triangles)
     if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.dtype.kind not in "iu"):
         raise ValueError(f"triangles must be integers of shape (m, 3), got {tri.dtype} {tri.shape}")
-    if tri.size and (tri.min() < 0 or tri.max() >= len(c)):
-        raise ValueError(f"triangles index vertices 0..{tri.max()} but only {len(c)} vertex values were given")
+    if tri.size and tri.min() < 0:
+        raise ValueError(f"triangles hold a negative vertex index ({tri.min()}); indices run from 0")
+    if tri.size and tri.max() >= len(c):
+        raise ValueError(f"triangles index vertex {tri.max()} but only {len(c)} vertex values were given")
     return c[tri].mean(axis=1)
 
 

@@ -245,3 +245,102 @@ def test_growth_parameter_difference_step(small_disk):
     for step in (0.0, np.nan, 1.0):
         with pytest.raises(ValueError, match=r"fd_step must be in \[1e-14, 0.1\]"):
             GrowthParameter(model, lambda g: uniform_growth(m.points, m.triangles, 0.01, g), fd_step=step)
+
+
+# ----------------------------------------------------------------------------- chemistry, geometry, growth, analysis
+
+def test_reaction_diffusion_refactorises_when_D_or_beta_is_changed(small_disk):
+    """Setting rd.D or rd.beta after a step used to reuse the factor of the old values (an error of 0.05)."""
+    from femshell.chemistry import ReactionDiffusion
+
+    m = small_disk
+    c = np.exp(-np.sum(m.points**2, axis=1))
+    for name, old, new in (("D", 1.0, 5.0), ("beta", 1.0, 3.0)):
+        kw = {"D": 1.0, "beta": 1.0}
+        rd = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points, **kw)
+        rd.step(c, 0.1)
+        setattr(rd, name, new)
+        fresh = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points, **{**kw, name: new})
+        assert np.allclose(rd.step(c, 0.1), fresh.step(c, 0.1), rtol=1e-12, atol=1e-14)
+        with pytest.raises(ValueError, match=rf"{name} must be a finite number in \[0.0, inf\), got -1"):
+            setattr(rd, name, -1.0)
+
+
+def test_a_negative_source_is_named_not_clipped_quietly(small_disk):
+    from femshell.chemistry import ReactionDiffusion
+
+    m = small_disk
+    for D in (0.0, 1.0):
+        rd = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points)
+        with pytest.raises(ValueError, match="source must be >= 0 with nonnegative=True .* got min -1"):
+            rd.step(np.zeros(m.n_vertices), 0.1, source=-1.0)
+        signed = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points, nonnegative=False)
+        assert signed.step(np.zeros(m.n_vertices), 0.1, source=-1.0).max() < 0
+
+
+def test_curvature_source_saturates_at_infinity_and_refuses_nan_or_complex():
+    from femshell.chemistry import curvature_source
+
+    assert curvature_source(np.array([np.inf, -np.inf])).tolist() == [15.0 * 0.05, 0.0]
+    for H, msg in ((np.nan, "H has 1 NaN"), (1j, "H must be real numbers")):
+        with pytest.raises(ValueError, match=msg):
+            curvature_source(H)
+    with pytest.raises(ValueError, match="w \\(production rate\\) must be a number"):
+        curvature_source(1.0, w=np.array([1.0, 2.0]))
+
+
+def test_geometry_refuses_indices_outside_the_points():
+    from femshell.geometry import element_to_vertex, face_normals, triangle_areas, vertex_normals
+
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    with pytest.raises(ValueError, match=r"negative vertex index \(-1\)"):
+        triangle_areas(pts, [[0, 1, -1]])                  # numpy read -1 as the last point: area 0.5 not 0
+    with pytest.raises(ValueError, match="index vertex 4 but there are only 4 points"):
+        vertex_normals(pts, [[0, 1, 4]])
+    with pytest.raises(ValueError, match=r"\(m, 3\) integer array"):
+        face_normals(pts, [[0.0, 1.0, 2.0]])
+    with pytest.raises(ValueError, match=r"one number per triangle, shape \(1,\), got \(2,\)"):
+        element_to_vertex([1.0, 2.0], pts, [[0, 1, 2]])
+    # no normal where there is no area: zero, not NaN
+    assert np.array_equal(face_normals(np.zeros((3, 3)), [[0, 1, 2]]), np.zeros((1, 3)))
+    assert np.array_equal(vertex_normals(pts, [[0, 1, 2]])[3], np.zeros(3))
+
+
+def test_mean_curvature_refuses_a_negative_definite_metric():
+    from femshell.geometry import mean_curvature
+
+    with pytest.raises(ValueError, match="not positive definite"):
+        mean_curvature(-np.eye(2)[None], np.eye(2)[None])
+
+
+def test_growth_laws_stay_quiet_and_finite_at_the_float_range():
+    import warnings
+
+    from femshell.growth import contractility, dstretch_dc, element_average, stretch
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                     # an overflow warning fails here
+        assert float(contractility(1e308)) == 10.0 and float(contractility(-1e308)) == 15.0
+        d = dstretch_dc(np.array([-1e300, 1e300]), b=1e308)
+    assert np.array_equal(d, [0.0, 0.0])                  # was NaN: -b·Δ overflowed and met σσ = 0
+    with pytest.raises(ValueError, match="lam0 .* must be a finite number > 0, got True"):
+        stretch(0.0, lam0=True)
+    with pytest.raises(ValueError, match=r"negative vertex index \(-1\)"):
+        element_average(np.ones(4), np.array([[0, 1, -1]]))
+
+
+def test_pattern_measures_refuse_impossible_counts(small_disk):
+    from femshell.analysis import find_spots, spot_radius, spot_spacing
+
+    for n in (-1, 0.5):
+        with pytest.raises(ValueError, match="n_spots must be an integer"):
+            spot_radius(1.0, n)
+    with pytest.raises(ValueError, match="area_low must be a finite number"):
+        spot_spacing(10.0, np.nan, 2)
+    assert np.isnan(spot_radius(0.0, 0))
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    with pytest.raises(ValueError, match="no triangles for the 3 points"):
+        find_spots(pts, np.zeros((0, 3), int), np.ones(3), 0.5)
+    m = small_disk
+    full = find_spots(m.points, m.triangles, np.ones(m.n_vertices), 0.5)
+    assert full.n_spots == 1 and 1 - 1e-12 < full.fraction_patterned <= 1.0     # a sphere gave 1 + 4e-15
