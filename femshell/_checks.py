@@ -57,8 +57,13 @@ def surface(points, triangles) -> tuple[np.ndarray, np.ndarray]:
     tri = np.asarray(triangles)
     if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.dtype.kind not in "iu"):
         raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}, dtype {tri.dtype}")
+    vertex_indices(tri, len(pts))
+    return pts, tri
+
+
+def vertex_indices(tri, n: int, of: str = "points") -> None:
+    """A ValueError unless every index of ``tri`` is in [0, n) (``of``: what the n are, for the message)."""
     if tri.size and tri.min() < 0:
         raise ValueError(f"triangles hold a negative vertex index ({tri.min()}); indices run from 0")
-    if tri.size and tri.max() >= len(pts):
-        raise ValueError(f"triangles index vertex {tri.max()} but there are only {len(pts)} points")
-    return pts, tri
+    if tri.size and tri.max() >= n:
+        raise ValueError(f"triangles index vertex {tri.max()} but there are only {n} {of}")

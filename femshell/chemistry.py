@@ -39,7 +39,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
-from ._checks import finite, real_array
+from ._checks import finite, real_array, vertex_indices
 
 __all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion"]
 
@@ -53,10 +53,7 @@ def _check_mesh(points, triangles):
         pts = np.column_stack([pts, np.zeros(len(pts))])
     if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
         raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}, dtype {tri.dtype}")
-    if tri.size and tri.min() < 0:
-        raise ValueError(f"triangles hold a negative vertex index ({tri.min()}); indices run from 0")
-    if tri.size and tri.max() >= len(pts):
-        raise ValueError(f"triangles index vertex {tri.max()} but there are only {len(pts)} points")
+    vertex_indices(tri, len(pts))
     return pts, tri
 
 
@@ -106,10 +103,7 @@ class P1Assembler:
         if isinstance(n_vertices, bool) or not isinstance(n_vertices, (int, np.integer)) or n_vertices < 1:
             raise ValueError(f"n_vertices must be an integer >= 1, got {n_vertices!r}")
         n = int(n_vertices)
-        if tri.size and tri.min() < 0:
-            raise ValueError(f"triangles hold a negative vertex index ({tri.min()}); indices run from 0")
-        if tri.size and tri.max() >= n:
-            raise ValueError(f"triangles index vertex {tri.max()} but n_vertices = {n}")
+        vertex_indices(tri, n, of="vertices (n_vertices)")
         self.triangles = tri.astype(np.int64)
         self.n_vertices = n
         rows = np.repeat(self.triangles, 3, axis=1).ravel()       # (m*9,) local (a, b) -> row tri[a]

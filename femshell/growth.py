@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import expit
 
-from ._checks import real_array
+from ._checks import real_array, vertex_indices
 
 __all__ = ["contractility", "stretch", "dstretch_dc", "element_average", "target_metric",
            "target_thickness", "target_curvature", "THICKNESS_MODES"]
@@ -165,10 +165,7 @@ def element_average(c_vertices, triangles):
     tri = np.asarray(triangles)
     if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.dtype.kind not in "iu"):
         raise ValueError(f"triangles must be integers of shape (m, 3), got {tri.dtype} {tri.shape}")
-    if tri.size and tri.min() < 0:
-        raise ValueError(f"triangles hold a negative vertex index ({tri.min()}); indices run from 0")
-    if tri.size and tri.max() >= len(c):
-        raise ValueError(f"triangles index vertex {tri.max()} but only {len(c)} vertex values were given")
+    vertex_indices(tri, len(c), of="vertex values")
     return c[tri].mean(axis=1)
 
 
