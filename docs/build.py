@@ -30,6 +30,8 @@ def _fmt(v, spec=".4g"):
 
 def validation_report(results: Path = ROOT / "validation" / "results") -> str:
     """Markdown tables of every validation JSON in ``results``."""
+    from femshell.validation.framework import verdict
+
     lines = ["# Validation report", "",
              "Made by `python docs/build.py --update-report` from `validation/results/*.json`, the output of",
              "`femshell validate NAME --level full --out validation/results`. Each row compares femshell with",
@@ -41,8 +43,9 @@ def validation_report(results: Path = ROOT / "validation" / "results") -> str:
         lines.append("No results yet: run `femshell validate all --level full --out validation/results`.")
     for f in files:
         doc = json.loads(f.read_text())
-        ok = all(r["passed"] for r in doc["rows"] if r["tolerance"] is not None)
-        lines += [f"## {doc['case']} ({doc['level']}): {'passed' if ok else 'FAILED'}", "",
+        text = verdict(doc["rows"])
+        head, _, rest = text.partition(" (")
+        lines += [f"## {doc['case']} ({doc['level']}): {head}", "", f"Verdict: {head} ({rest}", "",
                   doc.get("description", ""), "", f"Reference: {doc['source']}", ""]
         png = f.with_suffix(".png")
         if png.exists():
@@ -51,7 +54,7 @@ def validation_report(results: Path = ROOT / "validation" / "results") -> str:
                   "|---|---|---|---|---|---|---|---|"]
         for r in doc["rows"]:
             lines.append(f"| {r['quantity']} | {_fmt(r['value'])} | {_fmt(r['reference'])} | "
-                         f"{_fmt(r['rel_error'], '.2e')} | {_fmt(r['tolerance'], '.0e')} | "
+                         f"{_fmt(r['rel_error'], '.2e')} | {_fmt(r['tolerance'], '.2g')} | "
                          f"{'' if r['passed'] is None else ('yes' if r['passed'] else 'NO')} | "
                          f"{r['n_vertices'] or ''} | {r['wall_s']:.2f} |")
         lines.append("")

@@ -127,7 +127,7 @@ def _cmd_mesh(args):
     out = Path(args.output)
     if out.is_dir():
         raise ValueError(f"-o {out} is a directory: give a file name ending in .vtu, .msh or .xdmf")
-    _check_writable_dir(out.parent, "the output's directory")   # before meshing, not after
+    check_writable_dir(out.parent, "the output's directory")   # before meshing, not after
     existing = [f for f in (out, out.with_suffix(".h5") if out.suffix == ".xdmf" else None)
                 if f is not None and f.exists()]
     if existing and not args.overwrite:   # checked before meshing: no output lost, no time wasted
@@ -198,13 +198,26 @@ def _cmd_validate(args):
         for name in names:
             print(f"{name:<34} {cases[name]}")
         return 0
-    _check_writable_dir(Path(args.out), "--out")   # before hours of computing, not after
+    check_writable_dir(Path(args.out), "--out")   # before hours of computing, not after
     ok = True
+    broken = []
     for name in names:
         earlier = Path(args.out) / f"{name}.json"
         print(f"== {name} ({args.level})" + (f"; replaces {earlier}" if earlier.exists() else ""))
-        ok &= run_case(name, args.level, args.out)
+        try:
+            ok &= run_case(name, args.level, args.out)
+        except Exception as exc:      # a computation that fails is a failed case, not bad input: go on
+            import traceback
+
+            where = traceback.extract_tb(exc.__traceback__)[-1]
+            kept = f"; the earlier {earlier} is kept" if earlier.exists() else ""
+            print(f"{name}: FAILED: the case stopped with {type(exc).__name__}: {exc} "
+                  f"(at {Path(where.filename).name}:{where.lineno}){kept}", file=sys.stderr)
+            broken.append(name)
+            ok = False
     print(f"results in {args.out}/")
+    if broken:
+        print(f"cases that stopped with an error: {', '.join(broken)}", file=sys.stderr)
     return 0 if ok else 1
 
 
@@ -231,17 +244,10 @@ def _cmd_scenes(args):
     return 0
 
 
-def _check_writable_dir(path: Path, what: str):
-    """Make ``path`` a directory (with parents) and check that files can be created in it."""
-    import tempfile
+def check_writable_dir(path, what):
+    from .io import check_writable_dir as check     # lazily: `femshell --help` stays quick
 
-    if path.exists() and not path.is_dir():
-        raise ValueError(f"{what} {path} is a file, not a directory: choose a directory")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        tempfile.TemporaryFile(dir=path).close()
-    except OSError as exc:
-        raise ValueError(f"{what} {path}: cannot write there ({exc.strerror or exc})") from None
+    return check(path, what)
 
 
 def _cmd_render(args):
@@ -250,7 +256,7 @@ def _cmd_render(args):
     if args.every < 1:
         raise ValueError(f"--every must be >= 1, got {args.every}")
     if Path(args.dir).is_dir():
-        _check_writable_dir(Path(args.dir) / "pictures", "pictures directory")
+        check_writable_dir(Path(args.dir) / "pictures", "pictures directory")
     t0 = time.perf_counter()
     paths = render_run(args.dir, field=args.field, series=args.series, every=args.every, movie=not args.no_movie,
                        fps=args.fps, cmap=args.cmap)

@@ -163,6 +163,22 @@ def atomic_write_text(path, text: str, encoding: str = "utf-8") -> Path:
     return atomic_write(path, w)
 
 
+def check_writable_dir(path, what: str) -> Path:
+    """Make ``path`` a directory (with parents) and check that files can be created in it, or a
+    ValueError naming ``what`` (a command-line option): before hours of computing, not after."""
+    import tempfile
+
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{what} {path} is a file, not a directory: choose a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: cannot write there ({exc.strerror or exc})") from None
+    return path
+
+
 def check_generated(path, begin: str, end: str) -> str:
     """The text of a page whose generated part lies between the marker lines ``begin`` and
     ``end``; ValueError naming the file when it cannot be read or a marker is missing. Scripts

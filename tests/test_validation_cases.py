@@ -23,3 +23,36 @@ def test_case_quick(name, tmp_path):
         assert set(row) >= {"quantity", "value", "reference", "rel_error", "tolerance", "passed", "n_vertices",
                             "wall_s"}
         assert row["value"] is not None and math.isfinite(row["value"])
+
+
+def test_rows_are_plain_json_numbers_and_a_bad_tolerance_is_named():
+    import numpy as np
+
+    from femshell.validation.framework import Row, _row_json
+
+    r = Row("q", np.float32(1.0), np.float64(1.0), np.float64(0.1), n_vertices=np.int64(5), wall_s=np.float32(2))
+    json.dumps(_row_json(r), allow_nan=False)          # np.bool_ / np.int64 made json.dumps fail after a run
+    assert r.passed is True and type(r.n_vertices) is int
+    with pytest.raises(ValueError, match="row 'q': tolerance must be a finite number >= 0 or None, got nan"):
+        Row("q", 1.0, 1.0, float("nan"))
+
+
+def test_a_case_that_stops_with_an_error_fails_and_the_next_cases_run(tmp_path, monkeypatch, capsys):
+    """A solver error inside a case used to end `validate` with 'error:' and exit 2 (bad input), or a
+    traceback, and the cases after it did not run."""
+    import types
+
+    from femshell.cli import main
+    from femshell.validation import framework
+
+    (tmp_path / "broken.json").write_text('{"earlier": true}')
+    fake = types.SimpleNamespace(DESCRIPTION="raises", SOURCE="none",
+                                 run=lambda level: (_ for _ in ()).throw(RuntimeError("Newton diverged")))
+    real_load = framework._load
+    monkeypatch.setitem(framework.CASES, "broken", "broken")
+    monkeypatch.setattr(framework, "_load", lambda name: fake if name == "broken" else real_load(name))
+    assert main(["validate", "broken", "patch-tests", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "broken: FAILED: the case stopped with RuntimeError: Newton diverged" in err
+    assert "the earlier" in err and json.loads((tmp_path / "broken.json").read_text()) == {"earlier": True}
+    assert json.loads((tmp_path / "patch-tests.json").read_text())["case"] == "patch-tests"   # ran after it

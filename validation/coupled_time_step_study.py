@@ -23,12 +23,13 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from femshell.analysis import vertex_areas
-from femshell.io import atomic_write_json, check_generated, replace_generated
+from femshell.io import atomic_write_json, check_generated, check_writable_dir, replace_generated
 from femshell.validation.sphere_patterns import SCENARIOS, model_of, run_scenario
 
 
@@ -111,13 +112,19 @@ def main():
     ap.add_argument("--ds-max", type=float, nargs="+", default=[0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.0025])
     ap.add_argument("--states", type=Path, default=Path("validation-out/coupled-time-step"),
                     help="directory of the saved end states")
-    ap.add_argument("--json", type=Path, default=Path("validation/results/studies/coupled-time-step.json"))
+    ap.add_argument("--json", type=Path, default=Path("validation/results/studies/coupled-time-step.json"),
+                    help="records of the runs (default: the committed "
+                         "validation/results/studies/coupled-time-step.json, replaced by this run's)")
     ap.add_argument("--doc", type=Path, default=None, help="markdown file whose generated table to rewrite")
     args = ap.parse_args()
     if len(args.ds_max) < 2 or min(args.ds_max) <= 0:
         ap.error("--ds-max needs at least two positive values (the smallest is the reference)")
-    if args.doc is not None:
-        check_generated(args.doc, *markers(args.scenario))
+    try:
+        if args.doc is not None:
+            check_generated(args.doc, *markers(args.scenario))
+        check_writable_dir(args.json.parent, "--json's directory")
+    except ValueError as exc:
+        sys.exit(str(exc))
     runs = []
     for ds in sorted(args.ds_max, reverse=True):
         r = run(args.scenario, args.radius, args.n_vertices, args.t_final, ds, args.states)

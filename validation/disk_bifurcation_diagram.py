@@ -28,10 +28,12 @@ from __future__ import annotations
 
 import argparse
 import csv
+import sys
 from pathlib import Path
 
 import numpy as np
 
+from femshell.io import check_writable_dir
 from femshell.validation.disk_wrinkles import EPS_END, _follow_branch, follow
 
 
@@ -109,8 +111,16 @@ def main(argv=None):
     ap.add_argument("--h", type=float, default=2.0)
     ap.add_argument("--R2", type=float, default=3.0)
     ap.add_argument("--resolution", type=int, default=8, help="edges per R2 along the grown circle")
-    ap.add_argument("--out", type=Path, default=Path("docs/images/disk-bifurcation-diagram.png"))
+    ap.add_argument("--out", type=Path, default=Path("docs/images/disk-bifurcation-diagram.png"),
+                    help="picture, with its .csv beside it (default: the committed "
+                         "docs/images/disk-bifurcation-diagram.png, relative to the current directory; replaced)")
     args = ap.parse_args(argv)
+    if args.resolution < 2 or args.h <= 0 or args.R2 <= 0:
+        ap.error("--resolution needs an integer >= 2 (edges per R2), --h and --R2 numbers > 0")
+    try:
+        check_writable_dir(args.out.parent, "--out's directory")    # before the continuation, not after
+    except ValueError as exc:
+        sys.exit(str(exc))
     result = follow(args.h, args.R2, args.resolution, log=print)
     d = result["disk"]
     flat = _follow_branch(d, None, callback=None, max_steps=200)       # past the first instability

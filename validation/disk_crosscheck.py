@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from femshell.io import atomic_write_json, check_generated, replace_generated
+from femshell.io import atomic_write_json, check_generated, check_writable_dir, replace_generated
 from femshell.linear_buckling import _disk_mesh, azimuthal_wavenumber, critical_growth_strain
 from femshell.mesh.surface import SurfaceMesh
 from femshell.shell import Material, RestState, ShellModel
@@ -134,7 +134,9 @@ def main(argv=None):
     ap.add_argument("--h", type=float, nargs="+", default=[2.0, 0.25])
     ap.add_argument("--R2", type=float, nargs="+", default=[1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5])
     ap.add_argument("--resolution", type=int, nargs="+", default=[8, 12, 16])
-    ap.add_argument("--out", default="validation/results/studies/disk-crosscheck.json")
+    ap.add_argument("--out", default="validation/results/studies/disk-crosscheck.json",
+                    help="records, kept between calls: finished cases are skipped, new ones added (default: the "
+                         "committed validation/results/studies/disk-crosscheck.json)")
     ap.add_argument("--doc", default=None, help="markdown file whose generated table is rewritten")
     ap.add_argument("--table-only", action="store_true", help="compute nothing: print (and --doc) the JSON's table")
     args = ap.parse_args(argv)
@@ -143,8 +145,17 @@ def main(argv=None):
             check_generated(args.doc, BEGIN, END)
         except ValueError as exc:
             sys.exit(str(exc))
+    if min(args.resolution) < 2 or min(args.h) <= 0 or min(args.R2) <= 0:
+        ap.error("--resolution needs integers >= 2 (edges per R2), --h and --R2 numbers > 0")
     out = Path(args.out)
-    records = json.loads(out.read_text())["records"] if out.exists() else []
+    try:
+        check_writable_dir(out.parent, "--out's directory")      # before the cases run, not after
+    except ValueError as exc:
+        sys.exit(str(exc))
+    try:
+        records = json.loads(out.read_text())["records"] if out.exists() else []
+    except (ValueError, KeyError, TypeError) as exc:
+        sys.exit(f"--out {out} is not a records file of this script ({type(exc).__name__}: {str(exc)[:120]})")
     done = {(r["h"], r["R2"], r["resolution"]) for r in records}
     for h in [] if args.table_only else args.h:
         for R2 in args.R2:

@@ -157,6 +157,12 @@ def main(argv=None):
                     help="thickness law instead of the scenario's own (design.md 1.1)")
     ap.add_argument("--checkpoints", type=Path, default=Path("validation-out/sphere-patterns-study"))
     ap.add_argument("--doc", type=Path, default=None, help="markdown file whose generated table to rewrite")
+    ap.add_argument("--results", type=Path, default=RESULTS,
+                    help="directory of the per-scenario JSON (default: the committed validation/results/studies/"
+                         "sphere-patterns, whose NAME-R<radius>-n<vertices>.json a run replaces, whatever its "
+                         "--t-final: give a scratch directory for trial runs)")
+    ap.add_argument("--images", type=Path, default=IMAGES,
+                    help="directory of the pictures (default: the committed docs/images/sphere-patterns)")
     ap.add_argument("--table-only", action="store_true")
     args = ap.parse_args(argv)
     if args.doc is not None:              # a wrong page is reported now, not after hours of runs
@@ -167,8 +173,8 @@ def main(argv=None):
 
     if not args.table_only:
         signal.signal(signal.SIGTERM, signal.default_int_handler)   # kill: the same orderly stop as Ctrl-C
-        RESULTS.mkdir(parents=True, exist_ok=True)
-        IMAGES.mkdir(parents=True, exist_ok=True)
+        args.results.mkdir(parents=True, exist_ok=True)
+        args.images.mkdir(parents=True, exist_ok=True)
         args.checkpoints.mkdir(parents=True, exist_ok=True)
         for name in args.scenarios:
             print(f"== {name}", flush=True)
@@ -184,17 +190,17 @@ def main(argv=None):
                              log=lambda s: print(s, flush=True) if s.lstrip().startswith(("step", "initial")) else None)
             rec = {**record(r, radius, args.wall_time, model_of(SCENARIOS[name], radius)), "stem": stem,
                    "membrane_law": args.membrane_law, "thickness_mode": mode}
-            atomic_write_json(RESULTS / f"{stem}.json", rec)
+            atomic_write_json(args.results / f"{stem}.json", rec)
             title = f"{name}{law_tag(rec)}\nR = {radius:g}, {r['n_vertices']} vertices, t = {r['t']:.3g}, N_sp = {rec['n_spots']}"
-            top_view(r["points"], r["triangles"], ("c", r["c"]), IMAGES / f"{stem}-top.png", title=title,
+            top_view(r["points"], r["triangles"], ("c", r["c"]), args.images / f"{stem}-top.png", title=title,
                      clim=(0.0, r["c_max"]))
-            side_view(r["points"], r["triangles"], IMAGES / f"{stem}-side.png", title=title)
-            profile_plot(rec, IMAGES / f"{stem}-profile.png", title)
+            side_view(r["points"], r["triangles"], args.images / f"{stem}-side.png", title=title)
+            profile_plot(rec, args.images / f"{stem}-profile.png", title)
             print(f"   {rec['status']} t = {rec['t']:.4g}, {rec['steps']} steps, N_sp {rec['n_spots']}, "
                   f"{rec['wall_s']:.0f} s", flush=True)
             if rec["status"] == "interrupted":
                 break
-    records = [json.loads(p.read_text()) for p in sorted(RESULTS.glob("*.json"))]
+    records = [json.loads(p.read_text()) for p in sorted(args.results.glob("*.json"))]
     text = table(records)
     if args.doc is not None:              # before printing: a closed pipe must not lose the page
         try:

@@ -75,7 +75,9 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, nargs="+", required=True)
     ap.add_argument("--eps", type=float, default=ws.EPS_FIXED)
     ap.add_argument("--resolution", type=int, default=12)
-    ap.add_argument("--json", type=Path, default=Path("validation/results/studies/wrinkle-seeds.json"))
+    ap.add_argument("--json", type=Path, default=Path("validation/results/studies/wrinkle-seeds.json"),
+                    help="records, new states added to it (default: the committed "
+                         "validation/results/studies/wrinkle-seeds.json)")
     a = ap.parse_args(argv)
     if not 0.0 < a.eps <= 1.0 or min(a.h) <= 0.0 or a.resolution < 2:
         ap.error("need 0 < eps <= 1, h > 0 and resolution >= 2")

@@ -54,6 +54,13 @@ class Row:
 
     def __post_init__(self):
         self.value = float(self.value)
+        self.n_vertices = int(self.n_vertices)
+        self.wall_s = float(self.wall_s)
+        if self.tolerance is not None:
+            self.tolerance = float(self.tolerance)
+            if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
+                raise ValueError(f"row {self.quantity!r}: tolerance must be a finite number >= 0 or None, "
+                                 f"got {self.tolerance}")
         if self.reference is not None:
             ref = float(self.reference)
             self.reference = ref
@@ -63,7 +70,32 @@ class Row:
                 scale = abs(ref) if ref != 0 else 1.0  # absolute error against a zero reference
                 self.rel_error = abs(self.value - ref) / scale
         if self.tolerance is not None:
-            self.passed = self.rel_error is not None and self.rel_error <= self.tolerance
+            self.passed = bool(self.rel_error is not None and self.rel_error <= self.tolerance)
+
+
+#: a row reported without a tolerance whose value is further than this from its reference is named
+#: beside the verdict, so that "passed" is not read as covering it
+REPORTED_OFF = 0.1
+
+
+def verdict(rows) -> str:
+    """'passed' or 'FAILED' with what it covers: the toleranced rows that passed, and the rows reported
+    without a tolerance that are more than REPORTED_OFF from their reference (rows or their JSON dicts).
+
+    >>> verdict([Row("a", 1.0, 1.0, 0.1), Row("n", 0.0, 8.0)])
+    'passed (1 of 1 toleranced rows; 1 of 1 rows reported without a tolerance are more than 10 % from their reference: n)'
+    """
+    rows = [asdict(r) if isinstance(r, Row) else r for r in rows]
+    checked = [r for r in rows if r["tolerance"] is not None]
+    ok = all(r["passed"] for r in checked)
+    text = f"{'passed' if ok else 'FAILED'} ({sum(r['passed'] is True for r in checked)} of {len(checked)} toleranced rows"
+    reported = [r for r in rows if r["tolerance"] is None and r["reference"] is not None]
+    off = [r["quantity"] for r in reported if r["rel_error"] is None or r["rel_error"] > REPORTED_OFF]
+    if off:
+        names = "; ".join(off[:3]) + (f"; … ({len(off) - 3} more)" if len(off) > 3 else "")
+        text += (f"; {len(off)} of {len(reported)} rows reported without a tolerance are more than "
+                 f"{100 * REPORTED_OFF:g} % from their reference: {names}")
+    return text + ")"
 
 
 def short_reason(exc, limit=100) -> str:
@@ -121,15 +153,14 @@ def run_case(name: str, level: str = "quick", out_dir: str | os.PathLike = "vali
         status = "" if r.passed is None else ("PASS" if r.passed else "FAIL")
         ref = "" if r.reference is None else f" ref {r.reference:.6g}"
         err = "" if r.rel_error is None else f" err {r.rel_error:.2e}"
-        tol = "" if r.tolerance is None else f" tol {r.tolerance:.0e}"
+        tol = "" if r.tolerance is None else f" tol {r.tolerance:.2g}"
         log(f"  {r.quantity:<48} {r.value:.6g}{ref}{err}{tol}  n={r.n_vertices} {r.wall_s:.2f}s {status}")
     doc = {"case": name, "level": level, "source": mod.SOURCE, "description": mod.DESCRIPTION,
            "total_wall_s": total, "rows": [_row_json(r) for r in rows]}
     atomic_write_text(out / f"{name}.json", json.dumps(doc, indent=1))
     _plot(mod, rows, out / f"{name}.png", f"{name} ({level})")
     ok = all(r.passed for r in rows if r.tolerance is not None)
-    log(f"{name}: {'passed' if ok else 'FAILED'} ({sum(r.passed is True for r in rows)} of "
-        f"{sum(r.tolerance is not None for r in rows)} toleranced rows passed, {total:.1f} s)")
+    log(f"{name}: {verdict(rows)}, {total:.1f} s")
     return ok
 
 

@@ -191,12 +191,14 @@ def run(level, out_dir=None, log=None):
         rows.append(Row(f"states with spots in the sweep of {label} at {fixed}", len(spotted)))
         if not math.isnan(p):       # no NaN in a result file: the count row says why there is no exponent
             err = "undetermined with 2 states" if math.isnan(sp) else f"{sp:.2g}"
-            rows.append(Row(f"fitted exponent of the spot radius vs {label} at {fixed} (+- {err}; paper {ref:g})", p))
+            rows.append(Row(f"fitted exponent of the spot radius vs {label} at {fixed} (+- {err}; paper {ref:g})", p,
+                            ref))
         multi = [k for k in spotted if states[k]["measures"].n_spots >= 2]
         if len(multi) == len(spotted) and not math.isnan(p):
             q, sq = fit_exponent(x, [states[k]["measures"].spacing for k in spotted])
             err = "undetermined with 2 states" if math.isnan(sq) else f"{sq:.2g}"
-            rows.append(Row(f"fitted exponent of the spot spacing vs {label} at {fixed} (+- {err}; paper {ref:g})", q))
+            rows.append(Row(f"fitted exponent of the spot spacing vs {label} at {fixed} (+- {err}; paper {ref:g})", q,
+                            ref))
         else:
             rows.append(Row(f"states of this sweep with a single spot (spacing = sphere minus spot: no spacing "
                             f"exponent) ({label})", len(spotted) - len(multi)))

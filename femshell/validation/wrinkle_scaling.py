@@ -231,7 +231,7 @@ def run(level, out_dir=None, log=None):
                         len(ok), None, None))
         if measurable:      # no NaN in a result file: the row above says why there is no exponent
             rows.append(Row(f"fitted exponent of lambda vs {var} at {fixed} (+- {sp:.2g}; Cerda-Mahadevan "
-                            f"{REFERENCE[var]:g})", p, None, None))
+                            f"{REFERENCE[var]:g})", p, REFERENCE[var], None))
     _LAST.update(states=states, sweeps=sweeps, checks=checks)
     return rows
 
