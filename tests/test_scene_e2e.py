@@ -4,6 +4,7 @@ Runs go through ``femshell.cli.main`` in this process (JAX compiles once for all
 them); the kill -9 test runs ``femshell run`` in a subprocess.
 """
 
+import csv
 import json
 import os
 import signal
@@ -391,6 +392,12 @@ def test_continuation_resumed_on_the_switched_branch_ends_where_the_uninterrupte
         assert s["status"] == "done", (name, s["message"])
         assert s["final"]["final_value"] == pytest.approx(ref["final_value"], rel=1e-9)
         assert s["final"]["amplitude"] == pytest.approx(ref["amplitude"], rel=1e-6)
+        # the table's step numbers go on across the resumes (they restarted at 1)
+        with open(out / "branch.csv") as f:
+            table = list(csv.DictReader(f))
+        for branch in ("primary", "switched"):
+            steps = [int(r["step"]) for r in table if r["branch"] == branch and not r.get("special")]
+            assert steps == list(range(steps[0], steps[0] + len(steps))), (name, branch, steps)
 
 
 def test_continuation_short_of_its_stop_says_so(tmp_path):

@@ -1149,9 +1149,12 @@ class ContinuationRunner(BaseRunner):
             with committing():              # the branch's point, its row, frame and checkpoint together
                 return _accept_point(branch, row)
 
+        def numbered(rows):
+            # a resumed branch's solver counts its steps from 0 again: the table goes on from the steps before
+            return [dict(r, branch=label, **({"step": r["step"] + steps_done} if "step" in r else {})) for r in rows]
+
         def _accept_point(branch, row):
-            rows = list(branch.rows)[self.seg_offset:]
-            self.cur_rows = [dict(r, branch=label) for r in rows]
+            self.cur_rows = numbered(list(branch.rows)[self.seg_offset:])
             self.prev = (self.u, self.lam)
             self.u, self.lam = branch.states[-1] if branch.states[-1] is not None else branch.last
             self.u = np.asarray(self.u, float)
@@ -1161,7 +1164,7 @@ class ContinuationRunner(BaseRunner):
                 self._special(sp, label)
             self._sp_seen = len(branch.special_points)
             self.newton_total += int(row.get("iterations") or 0)
-            text = (f"{label} step {row['step']:3d}  {self.param} {row['parameter']:.6g}  ds {row['ds']:.3g}  "
+            text = (f"{label} step {row['step'] + steps_done:3d}  {self.param} {row['parameter']:.6g}  ds {row['ds']:.3g}  "
                     f"it {row['iterations']}  n_neg {row['n_negative']}  amplitude {row.get('amplitude', 0):.4g}"
                     + (f"  wrinkles {int(row['wrinkles'])}" if "wrinkles" in row else "")
                     + (f"  passed {', '.join(sp.label for sp in new_sp)}" if new_sp else ""))
@@ -1209,7 +1212,7 @@ class ContinuationRunner(BaseRunner):
         for sp in branch.special_points[self._sp_seen:]:
             self._special(sp, label)
         self._sp_seen = len(branch.special_points)
-        self.cur_rows = [dict(r, branch=label) for r in list(branch.rows)[self.seg_offset:]]
+        self.cur_rows = numbered(list(branch.rows)[self.seg_offset:])
         self.segments += self.cur_rows
         self.cur_rows = []
         if branch.status == "callback":       # --max-steps
