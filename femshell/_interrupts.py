@@ -6,11 +6,13 @@ directory whose step counter, frames and checkpoint disagree. So the code that c
 step runs inside :func:`committing`: a signal there is only noted. Without an enclosing
 :func:`step_scope` it is raised when the commit ends; inside one, the signal stays held
 until the scope ends, so that the caller's bookkeeping of the step (its frame, its
-checkpoint) is done too. Before the commit starts the step stays interruptible. A second
-signal while one is held raises at once: a user who presses Ctrl-C twice wants out now
-(files are still written atomically).
+checkpoint) is done too. Before the commit starts the step stays interruptible.
 
-Only the main thread receives signals; elsewhere both blocks run unchanged.
+Blocks nest in any order; the outermost end raises. A block left by an error re-raises that
+error (a noted signal is then dropped: the error ends the step anyway). The handlers are
+swapped and restored with the signals blocked at the OS level, so a signal that arrives
+meanwhile is delivered afterwards, never lost. Only the main thread receives signals;
+elsewhere both blocks run unchanged.
 """
 
 from __future__ import annotations
@@ -19,51 +21,84 @@ import contextlib
 import signal
 import threading
 
-_scopes = 0
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_depth = 0                       # open step_scope and committing blocks
 _held: dict | None = None        # signal -> handler it had, while signals are held
 _pending = False
 
 
 def _note(signum, frame):
     global _pending
-    if _pending:
-        raise KeyboardInterrupt
     _pending = True
 
 
-def _main_thread() -> bool:
-    return threading.current_thread() is threading.main_thread()
-
-
-def _release():
-    global _held, _pending
-    if _held is None:
-        return
-    for sig, old in _held.items():
-        signal.signal(sig, old)
-    _held = None
-    if _pending:
-        _pending = False
-        raise KeyboardInterrupt
-
-
 @contextlib.contextmanager
-def step_scope():
-    """One step as the caller sees it: signals held by a :func:`committing` inside are raised at its end."""
-    global _scopes
-    if not _main_thread():
+def _masked():
+    """The block runs with SIGINT and SIGTERM blocked; any that arrived are delivered at its end."""
+    if not hasattr(signal, "pthread_sigmask"):        # Windows: no masks, tiny windows stay open
         yield
         return
-    _scopes += 1
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     try:
         yield
     finally:
-        _scopes -= 1
-        if _scopes == 0:
-            _release()
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _hold():
+    global _held, _pending
+    if _held is None:
+        _pending = False
+        _held = {sig: signal.signal(sig, _note) for sig in _SIGNALS
+                 if signal.getsignal(sig) is signal.default_int_handler}
+
+
+def _restore() -> bool:
+    """Put the held handlers back (the caller blocks the signals); whether a signal was noted."""
+    global _held, _pending
+    pending = _pending
+    for sig, old in (_held or {}).items():
+        signal.signal(sig, old)
+    _held, _pending = None, False
+    return pending
 
 
 @contextlib.contextmanager
+def _counted(hold: bool):
+    global _depth
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    entered = False
+    try:
+        with _masked():
+            _depth += 1
+            entered = True
+            if hold:
+                _hold()
+        yield
+    except BaseException:
+        if entered:
+            with _masked():
+                _depth -= 1
+                if _depth == 0:
+                    _restore()
+        raise
+    with _masked():
+        _depth -= 1
+        pending = _depth == 0 and _restore()
+    if pending:
+        raise KeyboardInterrupt
+
+
+def step_scope():
+    """One step as the caller sees it: a signal held by a :func:`committing` inside is raised at its end.
+
+    Outside a commit the block stays interruptible.
+    """
+    return _counted(hold=False)
+
+
 def committing():
     """Run the block with SIGINT (and SIGTERM, where it raises KeyboardInterrupt) held back.
 
@@ -74,18 +109,4 @@ def committing():
     >>> x
     1
     """
-    global _held, _pending
-    if not _main_thread():
-        yield
-        return
-    if _held is None:
-        _pending = False
-        _held = {}
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            if signal.getsignal(sig) is signal.default_int_handler:
-                _held[sig] = signal.signal(sig, _note)
-    try:
-        yield
-    finally:
-        if _scopes == 0:
-            _release()
+    return _counted(hold=True)

@@ -203,14 +203,17 @@ def _cmd_validate(args):
     broken = []
     for name in names:
         earlier = Path(args.out) / f"{name}.json"
-        print(f"== {name} ({args.level})" + (f"; replaces {earlier}" if earlier.exists() else ""))
+        before = earlier.stat().st_mtime_ns if earlier.exists() else None
+        print(f"== {name} ({args.level})" + (f"; replaces {earlier}" if before else ""))
         try:
             ok &= run_case(name, args.level, args.out)
         except Exception as exc:      # a computation that fails is a failed case, not bad input: go on
             import traceback
 
             where = traceback.extract_tb(exc.__traceback__)[-1]
-            kept = f"; the earlier {earlier} is kept" if earlier.exists() else ""
+            now = earlier.stat().st_mtime_ns if earlier.exists() else None
+            kept = ("" if now is None else f"; the earlier {earlier} is kept" if now == before
+                    else f"; {earlier} was written before the error")
             print(f"{name}: FAILED: the case stopped with {type(exc).__name__}: {exc} "
                   f"(at {Path(where.filename).name}:{where.lineno}){kept}", file=sys.stderr)
             broken.append(name)

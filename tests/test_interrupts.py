@@ -13,13 +13,14 @@ def test_a_signal_in_a_commit_is_raised_at_the_end_of_the_step():
         with step_scope():
             with committing():
                 signal.raise_signal(signal.SIGINT)
+                signal.raise_signal(signal.SIGINT)        # pressed twice: still one step, one interrupt
                 done.append("commit")
             done.append("bookkeeping")                # still held: the caller records the step
     assert done == ["commit", "bookkeeping"]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
-def test_a_commit_alone_raises_at_its_end_and_a_second_signal_at_once():
+def test_a_commit_alone_raises_at_its_end_and_nested_blocks_at_the_outermost():
     done = []
     with pytest.raises(KeyboardInterrupt):
         with committing():
@@ -28,10 +29,25 @@ def test_a_commit_alone_raises_at_its_end_and_a_second_signal_at_once():
     assert done == ["commit"]
     with pytest.raises(KeyboardInterrupt):
         with committing():
-            signal.raise_signal(signal.SIGINT)
-            signal.raise_signal(signal.SIGINT)       # pressed twice: out now
-            done.append("never")
-    assert done == ["commit"] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+            with committing():
+                signal.raise_signal(signal.SIGINT)
+            with step_scope():
+                pass
+            done.append("rest of the outer commit")
+    assert done == ["commit", "rest of the outer commit"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_error_in_a_commit_is_not_hidden_by_a_held_signal():
+    with pytest.raises(ValueError, match="the real problem"):
+        with step_scope():
+            with committing():
+                signal.raise_signal(signal.SIGINT)
+                raise ValueError("the real problem")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    with step_scope():                                # nothing left pending
+        with committing():
+            pass
 
 
 def test_before_the_commit_a_step_stays_interruptible():

@@ -88,8 +88,12 @@ def mesh_series(doc):
         name, where = q.split(" @ ", 1)
         if where.startswith("dt="):          # time-step series are not mesh series
             continue
-        m = re.match(r"(h|h_min)=([0-9.eE+-]+)", where)
-        size = float(m.group(2)) if m else None
+        # only a mesh spec alone: "h=2 R2=3" or "h=2 eps=0.5 ..." is a sweep of the shell's thickness
+        # and other parameters, whose rows (a stability count, the paper's value) are no mesh series
+        m = re.fullmatch(r"(h|h_min)=([0-9.eE+-]+)|(?:level|mesh) \d+", where)
+        if m is None:
+            continue
+        size = float(m.group(2)) if m.group(2) else None
         signed = None
         if r.get("reference") not in (None, 0) and r.get("value") is not None:
             signed = (r["value"] - r["reference"]) / abs(r["reference"])

@@ -40,7 +40,7 @@ import sys
 from pathlib import Path
 
 from femshell.analysis import polar_profile
-from femshell.io import atomic_write_json, check_generated, replace_generated
+from femshell.io import atomic_write_json, check_generated, check_writable_dir, replace_generated
 from femshell.validation.sphere_patterns import SCENARIOS, model_of, run_scenario
 from femshell.viz import side_view, top_view
 
@@ -165,11 +165,14 @@ def main(argv=None):
                     help="directory of the pictures (default: the committed docs/images/sphere-patterns)")
     ap.add_argument("--table-only", action="store_true")
     args = ap.parse_args(argv)
-    if args.doc is not None:              # a wrong page is reported now, not after hours of runs
-        try:
+    try:                                  # a wrong page or directory is reported now, not after hours of runs
+        if args.doc is not None:
             check_generated(args.doc, BEGIN, END)
-        except ValueError as exc:
-            sys.exit(str(exc))
+        if not args.table_only:
+            check_writable_dir(args.results, "--results")
+            check_writable_dir(args.images, "--images")
+    except ValueError as exc:
+        sys.exit(str(exc))
 
     if not args.table_only:
         signal.signal(signal.SIGTERM, signal.default_int_handler)   # kill: the same orderly stop as Ctrl-C

@@ -54,8 +54,8 @@ class Row:
 
     def __post_init__(self):
         self.value = float(self.value)
-        self.n_vertices = int(self.n_vertices)
-        self.wall_s = float(self.wall_s)
+        self.n_vertices = int(self.n_vertices or 0)       # None (e.g. read back from a JSON): not given
+        self.wall_s = float(self.wall_s or 0.0)
         if self.tolerance is not None:
             self.tolerance = float(self.tolerance)
             if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
