@@ -368,8 +368,7 @@ class ReactionDiffusion:
         points : (n, 3) array, optional
             The current geometry; omitted: the last one given.
         """
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"time step dt must be a finite number > 0, got {dt}")
+        dt = finite("time step dt", dt, 0.0, lo_open=True)
         c = real_array("c", c)
         if c.shape != (self.n_vertices,):
             raise ValueError(f"c must have shape ({self.n_vertices},), got {c.shape}")

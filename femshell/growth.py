@@ -188,6 +188,9 @@ def target_metric(rest_metric, s):
     a0 = np.asarray(rest_metric, dtype=float)
     if a0.ndim != 3 or a0.shape[1:] != (2, 2):
         raise ValueError(f"rest_metric must have shape (m, 2, 2), got {a0.shape}")
+    if not np.all(np.isfinite(a0)):
+        raise ValueError(f"rest_metric holds non-finite values in {int((~np.isfinite(a0)).any(axis=(1, 2)).sum())} "
+                         "element(s)")
     s = _check_stretch(s, len(a0))
     return (s * s)[:, None, None] * a0
 
@@ -214,7 +217,9 @@ def target_thickness(h0, s, mode: str = "volume"):
     """
     if mode not in THICKNESS_MODES:
         raise ValueError(f"thickness mode must be one of {THICKNESS_MODES}, got {mode!r}")
-    h0 = np.asarray(h0, dtype=float)
+    h0 = real_array("h0", h0)
+    if h0.ndim > 1:
+        raise ValueError(f"rest thickness h0 must be a number or one value per element, got shape {h0.shape}")
     if not (np.all(np.isfinite(h0)) and np.all(h0 > 0)):
         raise ValueError(f"rest thickness h0 must be finite and > 0, got min {np.min(h0)}")
     s = np.asarray(s, dtype=float)

@@ -344,3 +344,20 @@ def test_pattern_measures_refuse_impossible_counts(small_disk):
     m = small_disk
     full = find_spots(m.points, m.triangles, np.ones(m.n_vertices), 0.5)
     assert full.n_spots == 1 and 1 - 1e-12 < full.fraction_patterned <= 1.0     # a sphere gave 1 + 4e-15
+
+
+def test_growth_targets_and_the_chemistry_step_name_their_bad_arguments(small_disk):
+    from femshell.chemistry import ReactionDiffusion
+    from femshell.growth import target_metric, target_thickness
+
+    with pytest.raises(ValueError, match=r"rest_metric holds non-finite values in 1 element"):
+        target_metric(np.array([np.eye(2), np.full((2, 2), np.nan)]), 1.0)
+    with pytest.raises(ValueError, match=r"h0 must be a number or one value per element, got shape \(2, 1\)"):
+        target_thickness(np.ones((2, 1)), 2.0)             # returned shape (2, 1)
+    m = small_disk
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points)
+    for dt in (np.array([0.1, 0.2]), -1.0):
+        with pytest.raises(ValueError, match="time step dt must be"):
+            rd.step(np.zeros(m.n_vertices), dt)
+    with pytest.raises(ValueError, match="n_vertices must be an integer >= 1, got 4.7"):
+        ReactionDiffusion(m.triangles, 4.7)
