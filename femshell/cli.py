@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -299,5 +301,19 @@ def main(argv=None):
         return 2
 
 
+def console_main():
+    """The ``femshell`` command: :func:`main`, then an exit that a further Ctrl-C cannot disturb.
+
+    Once main returns, every output is written; a second Ctrl-C while Python shuts down (JAX's
+    clean-up takes a moment) printed a traceback from an atexit callback or turned exit code 130
+    into death by signal.
+    """
+    code = main()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(ValueError):       # not the main thread: nothing to ignore
+            signal.signal(sig, signal.SIG_IGN)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console_main()

@@ -58,3 +58,18 @@ def test_before_the_commit_a_step_stays_interruptible():
     with step_scope():
         with committing():
             pass                                      # nothing pending: nothing raised
+
+
+def test_a_ctrl_c_while_the_command_exits_prints_no_traceback():
+    """A second Ctrl-C after `femshell run` had written everything hit JAX's atexit clean-up: 'Exception
+    ignored in atexit callback ... KeyboardInterrupt', or death by SIGINT instead of exit code 130."""
+    import subprocess
+    import sys
+
+    code = ("import atexit, os, signal, sys\n"
+            "sys.argv = ['femshell', 'scenes']\n"
+            "from femshell.cli import console_main\n"
+            "atexit.register(lambda: os.kill(os.getpid(), signal.SIGINT))\n"
+            "console_main()\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "KeyboardInterrupt" not in r.stderr, r.stderr
