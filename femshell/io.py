@@ -137,9 +137,13 @@ def atomic_path(path) -> Iterator[Path]:
             raise OSError(f"{path}: the writer did not create the temporary file {tmp.name}")
         _fsync_file(tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError) and exc.filename is not None and Path(exc.filename) == tmp:
+            # name the file the user asked for, not our hidden temporary one
+            raise type(exc)(exc.errno, f"{exc.strerror} (a new {path.name} is written next to it first)",
+                            str(path)) from exc
         raise
     _fsync_dir(path.parent)
 
@@ -633,9 +637,13 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
                 shutil.copy2(path, prev_tmp)
             os.replace(prev_tmp, prev)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError) and exc.filename is not None and Path(exc.filename) == tmp:
+            # name the file the user asked for, not our hidden temporary one
+            raise type(exc)(exc.errno, f"{exc.strerror} (a new {path.name} is written next to it first)",
+                            str(path)) from exc
         raise
     _fsync_dir(path.parent)
     return path

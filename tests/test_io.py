@@ -255,3 +255,24 @@ def test_paths_and_values_that_cannot_be_written_or_read(tmp_path):
                                       '<DataSet timestep="nan" file="a.vtu"/></Collection></VTKFile>')
     with pytest.raises(ValueError, match="without a finite numeric timestep"):
         read_pvd(tmp_path / "nan.pvd")
+
+
+def test_a_failed_atomic_write_names_the_target_not_the_temporary_file(tmp_path, monkeypatch):
+    """A directory where the temporary file cannot be made (read-only) was reported as
+    '.summary.json.tmp-1234-abcd.json: Permission denied'."""
+    import builtins
+
+    from femshell.io import atomic_write_text
+
+    real = builtins.open
+
+    def refusing(file, *a, **k):
+        if ".tmp-" in str(file):
+            raise PermissionError(13, "Permission denied", str(file))
+        return real(file, *a, **k)
+
+    monkeypatch.setattr(builtins, "open", refusing)
+    with pytest.raises(PermissionError) as err:
+        atomic_write_text(tmp_path / "summary.json", "{}")
+    assert err.value.filename == str(tmp_path / "summary.json") and "Permission denied" in err.value.strerror
+    assert list(tmp_path.iterdir()) == []
