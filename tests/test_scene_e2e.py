@@ -506,6 +506,11 @@ def test_resume_with_another_set_names_the_command_that_resumes(tmp_path, capsys
     err = capsys.readouterr().err
     assert "cannot be resumed" in err and f"femshell run --out {out} --resume, without a scene or --set" in err
     assert main(["run", "--out", str(out), "--resume", "-q"]) == 0
+    # another scene altogether: the first differences and a count, not a 40-line listing
+    assert run("sphere-propagation", out, extra=["--resume"], overrides=SPHERE_TINY) == 2
+    err = capsys.readouterr().err
+    listed = [line for line in err.splitlines() if " in the run, " in line]
+    assert len(listed) == 8 and "more" in err
 
 
 def test_resume_after_scene_toml_was_edited_is_refused(tmp_path, capsys):

@@ -1450,6 +1450,8 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         for label, text in ((ck, resume_from[1].get("scene_toml")),
                             (old_p, old_p.read_text(encoding="utf-8") if old_p.is_file() else None)):
             diffs = _differences_from(text, label, sc, rd.path)
+            if len(diffs) > 8:              # another scene altogether: the first keys say enough
+                diffs = diffs[:8] + [f"... and {len(diffs) - 8} more"]
             if diffs:
                 raise RunDirError(f"{label}: the run there was made with another scene than the one given now, so it "
                                   "cannot be resumed:\n  " + "\n  ".join(diffs) + "\n(resume with the run's own "
