@@ -216,6 +216,36 @@ def test_ctrl_c_while_a_frame_is_written_keeps_that_frame(uninterrupted, tmp_pat
     assert [t for t, _ in read_pvd(out / "series.pvd")] == [t for t, _ in read_pvd(uninterrupted / "series.pvd")]
 
 
+def test_ctrl_c_while_a_finished_run_writes_its_results_keeps_them_consistent(tmp_path, monkeypatch, capsys):
+    """A Ctrl-C while summary.json was written left the previous one (12 steps behind the checkpoint, seen
+    by interrupting runs at random); one while the pictures were drawn lost the summary too."""
+    from femshell import io as fio
+    from femshell.scene import runner
+
+    real_summary, real_pictures = fio.write_summary, runner.TimeRunner.pictures
+
+    def signalled_summary(*a, **k):
+        signal.raise_signal(signal.SIGINT)
+        return real_summary(*a, **k)
+
+    def signalled_pictures(self):
+        signal.raise_signal(signal.SIGINT)
+        return real_pictures(self)
+
+    monkeypatch.setattr(fio, "write_summary", signalled_summary)
+    out = tmp_path / "a"
+    assert run("default", out, overrides=SPHERE_TINY) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "t_final" and s["steps"] == load_checkpoint(out / "checkpoint.npz")[1]["step"]
+    monkeypatch.setattr(fio, "write_summary", real_summary)
+    monkeypatch.setattr(runner.TimeRunner, "pictures", signalled_pictures)
+    out = tmp_path / "b"
+    assert run("default", out, overrides=SPHERE_TINY, pictures=True) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "t_final" and s["steps"] == load_checkpoint(out / "checkpoint.npz")[1]["step"]
+    assert "pictures skipped" in capsys.readouterr().err
+
+
 def test_failed_step_stops_with_checkpoint_and_no_nan(tmp_path, monkeypatch):
     from femshell.coupled import CoupledError, CoupledLoop
 

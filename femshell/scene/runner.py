@@ -479,21 +479,36 @@ class BaseRunner:
                 # the scene stored in --out already holds any --set overrides of this run
                 self.message = f"interrupted after step {self.step}; continue with: femshell run --out {rdp} --resume"
                 code = 130
-            # the last accepted state, whatever happened
-            if self.status not in ("interrupted", "failed", "paused") and self.last_frame_step != self.step:
-                self.write_frame()
-            if self.last_ckpt_step != self.step:
-                self.checkpoint()
+            # the last accepted state, whatever happened. A Ctrl-C from here on lets the frame, checkpoint and
+            # summary be written (they must agree) and skips only the pictures
+            late = False
+            try:
+                with committing():
+                    if self.status not in ("interrupted", "failed", "paused") and self.last_frame_step != self.step:
+                        self.write_frame()
+                    if self.last_ckpt_step != self.step:
+                        self.checkpoint()
+            except KeyboardInterrupt:
+                late = True
             pics = []
-            if self.status in FINAL and self.out["pictures"]:
+            if self.status in FINAL and self.out["pictures"] and not late:
                 try:
                     pics = self.pictures()
                     if self.out["movie"]:
                         from ..viz import render_run
                         pics += [p for p in render_run(rdp, cmap=self.out["cmap"]) if p.suffix in (".gif", ".mp4")]
+                except KeyboardInterrupt:
+                    late = True
                 except Exception as exc:  # pictures must not lose a finished run
                     self.p.say(f"warning: pictures failed: {type(exc).__name__}: {exc}")
-            self.write_summary(pics)
+            try:
+                with committing():
+                    self.write_summary(pics)
+            except KeyboardInterrupt:
+                late = True
+            if late and self.status in FINAL and self.out["pictures"]:
+                self.p.failure(f"warning: interrupted while writing the results: pictures skipped (femshell render "
+                               f"{rdp} makes them)")
         finally:
             if old_term is not None:
                 signal.signal(signal.SIGTERM, old_term)
