@@ -104,8 +104,8 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
-from ._interrupts import committing, step_scope
 from ._checks import finite as _finite, finite_vector
+from ._interrupts import committing, step_scope
 from .chemistry import ReactionDiffusion, curvature_source
 from .geometry import element_to_vertex, mean_curvature
 from .growth import THICKNESS_MODES, contractility, element_average, stretch, target_metric, target_thickness

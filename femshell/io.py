@@ -110,6 +110,13 @@ def _fsync_file(path: Path) -> None:
         os.close(fd)
 
 
+def _raise_for_target(exc: BaseException, tmp: Path, path: Path) -> None:
+    """An OSError about the temporary file is raised again naming ``path``, the file the user asked for."""
+    if isinstance(exc, OSError) and exc.filename is not None and Path(exc.filename) == tmp:
+        raise type(exc)(exc.errno, f"{exc.strerror} (a new {path.name} is written next to it first)",
+                        str(path)) from exc
+
+
 @contextlib.contextmanager
 def atomic_path(path) -> Iterator[Path]:
     """Context manager: yields a temporary path next to ``path``; on normal exit it replaces ``path``.
@@ -140,10 +147,7 @@ def atomic_path(path) -> Iterator[Path]:
     except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
-        if isinstance(exc, OSError) and exc.filename is not None and Path(exc.filename) == tmp:
-            # name the file the user asked for, not our hidden temporary one
-            raise type(exc)(exc.errno, f"{exc.strerror} (a new {path.name} is written next to it first)",
-                            str(path)) from exc
+        _raise_for_target(exc, tmp, path)
         raise
     _fsync_dir(path.parent)
 
@@ -640,10 +644,7 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
     except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
-        if isinstance(exc, OSError) and exc.filename is not None and Path(exc.filename) == tmp:
-            # name the file the user asked for, not our hidden temporary one
-            raise type(exc)(exc.errno, f"{exc.strerror} (a new {path.name} is written next to it first)",
-                            str(path)) from exc
+        _raise_for_target(exc, tmp, path)
         raise
     _fsync_dir(path.parent)
     return path
