@@ -56,10 +56,10 @@ def _hold():
 def _restore() -> bool:
     """Put the held handlers back (the caller blocks the signals); whether a signal was noted."""
     global _held, _pending
-    pending = _pending
-    for sig, old in (_held or {}).items():
+    held, pending = _held or {}, _pending
+    _held, _pending = None, False          # first: an interrupt between the two restores finds a clean state
+    for sig, old in held.items():
         signal.signal(sig, old)
-    _held, _pending = None, False
     return pending
 
 
