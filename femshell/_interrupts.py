@@ -79,16 +79,18 @@ def _counted(hold: bool):
         yield
     except BaseException:
         if entered:
-            with _masked():
-                _depth -= 1
-                if _depth == 0:
-                    _restore()
+            _leave()                       # the error ends the step: a noted signal is dropped
         raise
+    if _leave():
+        raise KeyboardInterrupt
+
+
+def _leave() -> bool:
+    """Close a block; at the outermost, put the handlers back. Whether a signal was noted."""
+    global _depth
     with _masked():
         _depth -= 1
-        pending = _depth == 0 and _restore()
-    if pending:
-        raise KeyboardInterrupt
+        return _depth == 0 and _restore()
 
 
 def step_scope():

@@ -25,11 +25,14 @@ import numpy as np
 from ._checks import surface
 
 
-def triangle_area_vectors(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """½ (x1 − x0) × (x2 − x0): area times unit normal, (m, 3)."""
-    points, triangles = surface(points, triangles)
+def _area_vectors(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     x = points[triangles]
     return 0.5 * np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+
+
+def triangle_area_vectors(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """½ (x1 − x0) × (x2 − x0): area times unit normal, (m, 3)."""
+    return _area_vectors(*surface(points, triangles))
 
 
 def triangle_areas(points, triangles) -> np.ndarray:
@@ -47,7 +50,7 @@ def face_normals(points, triangles) -> np.ndarray:
 def vertex_normals(points, triangles) -> np.ndarray:
     """Area-weighted unit vertex normals (n, 3); zero at a vertex in no triangle of non-zero area."""
     points, triangles = surface(points, triangles)
-    av = triangle_area_vectors(points, triangles)
+    av = _area_vectors(points, triangles)
     n = np.column_stack([np.bincount(triangles.ravel(), np.repeat(av[:, i], 3), minlength=len(points))
                          for i in range(3)])
     return n / np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
@@ -85,7 +88,7 @@ def element_to_vertex(values: np.ndarray, points, triangles) -> np.ndarray:
     values = np.asarray(values, dtype=float)
     if values.shape != (len(triangles),):
         raise ValueError(f"values must be one number per triangle, shape ({len(triangles)},), got {values.shape}")
-    area = triangle_areas(points, triangles)
+    area = np.linalg.norm(_area_vectors(points, triangles), axis=1)
     n = len(points)
     num = np.zeros(n)
     den = np.zeros(n)
