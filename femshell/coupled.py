@@ -916,7 +916,6 @@ class CoupledLoop:
         made within ``max_cuts`` cuts or dt would fall below ``dt_min``.
         """
         st = self.stepping
-        p = self.params
         wall0 = time.perf_counter()
         if self._at_end():
             raise CoupledError(f"t = {self.t:.6g} has reached t_final = {st.t_final:.6g}")
@@ -1008,34 +1007,50 @@ class CoupledLoop:
             self._update_curvature()
             if was_elliptic:
                 self._say_non_elliptic()
-            c_scale = max(float(np.max(np.abs(self.c))) if len(self.c) else 0.0,
-                          1e-2 * p.c_max if math.isfinite(p.c_max) else 0.0, 1e-300)
-            rate_c = float(np.max(np.abs(self.c - c_old))) / (h * c_scale) if len(self.c) else 0.0
-            rate_x = float(np.max(np.abs(self.points - x_old))) / (h * self._length)
-            self._last_rates = (rate_c, rate_x)
-            if rate_c < st.stationary_rate_c and rate_x < st.stationary_rate_x:
-                self.stationary_count += 1
-            else:
-                self.stationary_count = 0
-            if st.stationary_pattern_time > 0:
-                self._follow_pattern()
-            # next step: grow while Δs stays small, never beyond a step that had to be cut,
-            # and within the stability limit of the staggering (module docstring)
-            grow = st.grow if ds <= 0 else min(st.grow, st.safety * st.ds_max / ds)
-            nxt = h * max(grow, 0.1)
-            if cuts:
-                nxt = min(nxt, h)
-            self._last_gain = feedback_gain(self.c - c_old, self.params.source(self.H_vertex) - source)
-            if st.feedback_amplification > 0:
-                nxt = min(nxt, feedback_step_limit(self._last_gain, p.beta, st.feedback_amplification,
-                                                   exponential=p.D == 0))
-            self.dt = float(min(st.dt_max, max(st.dt_min, nxt)))
+            self._follow_stationarity(c_old, x_old, h)
+            self.dt = self._next_dt(h, ds, cuts, c_old, source)
             rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
             self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
                       f"(+{res.quasi_newton_iterations} quasi) "
                       f"cuts {cuts} max c {rec.max_c:.4g} max H {rec.max_H:.4g} ds {ds:.3g} "
                       f"spots {rec.n_spots} {rec.wall_s:.2f}s{' snapped' if snapped else ''}")
             return rec
+
+    def _follow_stationarity(self, c_old, x_old, h: float):
+        """Rates of change of c and of the shape over the accepted step of length h, and the stationarity counters.
+
+        rate_c = max|c − c_old| / (h c_scale), rate_x = max|x − x_old| / (h L) with c_scale the
+        largest |c| (at least 1 % of c_max) and L the mesh's length scale.
+        """
+        st, p = self.stepping, self.params
+        c_scale = max(float(np.max(np.abs(self.c))) if len(self.c) else 0.0,
+                      1e-2 * p.c_max if math.isfinite(p.c_max) else 0.0, 1e-300)
+        rate_c = float(np.max(np.abs(self.c - c_old))) / (h * c_scale) if len(self.c) else 0.0
+        rate_x = float(np.max(np.abs(self.points - x_old))) / (h * self._length)
+        self._last_rates = (rate_c, rate_x)
+        if rate_c < st.stationary_rate_c and rate_x < st.stationary_rate_x:
+            self.stationary_count += 1
+        else:
+            self.stationary_count = 0
+        if st.stationary_pattern_time > 0:
+            self._follow_pattern()
+
+    def _next_dt(self, h: float, ds: float, cuts: int, c_old, source_old) -> float:
+        """dt of the next step after an accepted one of length h that changed the stretch by ds.
+
+        Grows while Δs stays small, never beyond a step that had to be cut, and stays within
+        the stability limit of the staggering (module docstring).
+        """
+        st, p = self.stepping, self.params
+        grow = st.grow if ds <= 0 else min(st.grow, st.safety * st.ds_max / ds)
+        nxt = h * max(grow, 0.1)
+        if cuts:
+            nxt = min(nxt, h)
+        self._last_gain = feedback_gain(self.c - c_old, p.source(self.H_vertex) - source_old)
+        if st.feedback_amplification > 0:
+            nxt = min(nxt, feedback_step_limit(self._last_gain, p.beta, st.feedback_amplification,
+                                               exponential=p.D == 0))
+        return float(min(st.dt_max, max(st.dt_min, nxt)))
 
     def record(self, dt: float = 0.0, cuts: int = 0, wall_s: float = 0.0, snapped: bool = False) -> StepRecord:
         """The :class:`StepRecord` of the current state."""

@@ -536,6 +536,7 @@ class BaseRunner:
     def write_summary(self, pics):
         d = self.scene.data
         m = self.mesh
+        fin, res = self._final_measures()
         summary = {
             "scene": self.scene.name, "description": d["description"],
             "source": str(self.scene.source) if self.scene.source else None,
@@ -546,7 +547,7 @@ class BaseRunner:
             "mesh": {"n_vertices": m.n_vertices, "n_triangles": m.n_triangles, "n_edges": m.topology.n_edges,
                      "name": m.name},
             "parameters": d,
-            "final": _clean({**self.final(), **self.resolution()}),
+            "final": _clean({**fin, **res}),
             "files": {"series": f"{SERIES}.pvd", "frames": len(self.writer), "checkpoint": CHECKPOINT,
                       "scene": SCENE_FILE,
                       "pictures": [str(Path(p).relative_to(self.rd.path)) for p in pics]},
@@ -558,8 +559,17 @@ class BaseRunner:
     def extra_files(self) -> dict:
         return {}
 
+    def _final_measures(self) -> tuple:
+        """(final(), resolution()) of the current state, computed once: the summary and the report both
+        need them, and each is a pass over the whole mesh (pattern measures, fold angles)."""
+        key = (self.step, self.status)
+        cached = getattr(self, "_final_cache", None)
+        if cached is None or cached[0] != key:
+            self._final_cache = cached = (key, (self.final(), self.resolution()))
+        return cached[1]
+
     def report(self, code):
-        fin = self.final()
+        fin, res = self._final_measures()
         lines = [f"{self.status}: {self.message}" if self.message else f"{self.status}",
                  f"  {self.step} steps ({self.steps_this_run} in this run), {self.newton_total} Newton iterations, "
                  f"wall time {_hms(self.wall_before + self.p.elapsed)} ({self.p.elapsed:.1f} s in this run)"]
@@ -571,7 +581,6 @@ class BaseRunner:
             lines = lines[1:]
         for line in lines:
             self.p.say(line)
-        res = self.resolution()
         if res.get("edges_folded_over_limit"):      # said even when quiet, as the other warnings
             self.p.failure(f"  warning: neighbouring faces turn by up to {res['max_fold_change_deg']:.0f}° against "
                            f"the rest shape ({res['edges_folded_over_limit']} edges over {FOLD_WARNING_DEG:g}°): the "
