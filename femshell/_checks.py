@@ -54,11 +54,18 @@ def surface(points, triangles) -> tuple[np.ndarray, np.ndarray]:
     pts = real_array("points", points)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-    tri = np.asarray(triangles)
-    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.dtype.kind not in "iu"):
-        raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}, dtype {tri.dtype}")
+    tri = triangle_array(triangles)
     vertex_indices(tri, len(pts))
     return pts, tri
+
+
+def triangle_array(triangles, what: str = "triangles") -> np.ndarray:
+    """``triangles`` as an (m, 3) integer array (an empty one of any dtype is taken), or a ValueError
+    naming ``what``. The indices are checked against the vertices by :func:`vertex_indices`."""
+    tri = np.asarray(triangles)
+    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.dtype.kind not in "iu"):
+        raise ValueError(f"{what} must be an (m, 3) integer array, got shape {tri.shape}, dtype {tri.dtype}")
+    return tri if tri.dtype.kind in "iu" else tri.astype(np.int64)
 
 
 def vertex_indices(tri, n: int, of: str = "points") -> None:

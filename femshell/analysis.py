@@ -53,7 +53,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ._checks import finite, finite_vector
+from ._checks import finite, finite_vector, triangle_array, vertex_indices
 from .geometry import triangle_areas
 
 __all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeasures", "find_spots",
@@ -62,16 +62,12 @@ __all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeas
 
 def _mesh(points, triangles):
     pts = np.asarray(points, dtype=float)
-    tri = np.asarray(triangles)
     if pts.ndim != 2 or pts.shape[1] not in (2, 3):
         raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
     if pts.shape[1] == 2:
         pts = np.column_stack([pts, np.zeros(len(pts))])
-    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and not np.issubdtype(tri.dtype, np.integer)):
-        raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}")
-    if tri.size and (tri.min() < 0 or tri.max() >= len(pts)):
-        bad = tri.min() if tri.min() < 0 else tri.max()
-        raise ValueError(f"triangles index vertex {bad}, outside 0..{len(pts) - 1}")
+    tri = triangle_array(triangles)
+    vertex_indices(tri, len(pts))
     if not np.all(np.isfinite(pts)):
         raise ValueError(f"points hold NaN or infinity at {int((~np.isfinite(pts)).any(axis=1).sum())} vertices")
     return pts, tri.astype(np.int64)

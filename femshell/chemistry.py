@@ -39,20 +39,18 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
-from ._checks import finite, real_array, vertex_indices
+from ._checks import finite, real_array, triangle_array, vertex_indices
 
 __all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion"]
 
 
 def _check_mesh(points, triangles):
     pts = np.asarray(points, dtype=float)
-    tri = np.asarray(triangles)
     if pts.ndim != 2 or pts.shape[1] not in (2, 3):
         raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
     if pts.shape[1] == 2:
         pts = np.column_stack([pts, np.zeros(len(pts))])
-    if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-        raise ValueError(f"triangles must be an (m, 3) integer array, got shape {tri.shape}, dtype {tri.dtype}")
+    tri = triangle_array(triangles)
     vertex_indices(tri, len(pts))
     return pts, tri
 
@@ -97,9 +95,7 @@ class P1Assembler:
     """
 
     def __init__(self, triangles, n_vertices: int):
-        tri = np.asarray(triangles)
-        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise ValueError(f"triangles must be an (m, 3) integer array, got {tri.shape} {tri.dtype}")
+        tri = triangle_array(triangles)
         if isinstance(n_vertices, bool) or not isinstance(n_vertices, (int, np.integer)) or n_vertices < 1:
             raise ValueError(f"n_vertices must be an integer >= 1, got {n_vertices!r}")
         n = int(n_vertices)

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import expit
 
-from ._checks import real_array, vertex_indices
+from ._checks import real_array, triangle_array, vertex_indices
 
 __all__ = ["contractility", "stretch", "dstretch_dc", "element_average", "target_metric",
            "target_thickness", "target_curvature", "THICKNESS_MODES"]
@@ -162,9 +162,7 @@ def element_average(c_vertices, triangles):
     array([3., 6.])
     """
     c = _as_finite(c_vertices, "vertex values")
-    tri = np.asarray(triangles)
-    if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and tri.dtype.kind not in "iu"):
-        raise ValueError(f"triangles must be integers of shape (m, 3), got {tri.dtype} {tri.shape}")
+    tri = triangle_array(triangles)
     vertex_indices(tri, len(c), of="vertex values")
     return c[tri].mean(axis=1)
 

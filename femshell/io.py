@@ -62,6 +62,8 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
+from ._checks import triangle_array, vertex_indices
+
 __all__ = [
     "atomic_path", "atomic_write", "atomic_write_text", "atomic_write_json", "check_generated", "replace_generated",
     "to_json_safe",
@@ -444,15 +446,11 @@ class TimeSeriesWriter:
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.name = name
-        tri = np.asarray(mesh.triangles)
         self.points = np.asarray(mesh.points, dtype=float)
         if self.points.ndim != 2 or self.points.shape[1] != 3:
             raise ValueError(f"mesh points must have shape (n, 3), got {self.points.shape}")
-        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise ValueError(f"mesh triangles must be integers of shape (m, 3), got {tri.dtype} {tri.shape}")
-        if tri.size and (tri.min() < 0 or tri.max() >= len(self.points)):
-            raise ValueError(f"mesh triangles index vertices outside 0..{len(self.points) - 1} "
-                             f"(min {tri.min()}, max {tri.max()})")
+        tri = triangle_array(mesh.triangles, "mesh triangles")
+        vertex_indices(tri, len(self.points), of="mesh points")
         self.triangles = tri.astype(np.int64)
         self.n_points, self.n_cells = len(self.points), len(self.triangles)
         self.pvd_path = self.out_dir / f"{name}.pvd"
