@@ -36,6 +36,7 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
+from ._checks import triangle_array, vertex_indices
 from .io import atomic_write, find_series, read_frame, read_pvd
 
 __all__ = ["top_view", "side_view", "view_grid", "bifurcation_diagram", "render_movie", "render_run",
@@ -58,13 +59,10 @@ def _pyvista():
 def _polydata(points, triangles):
     pv = _pyvista()
     pts = np.asarray(points, dtype=float)
-    tri = np.asarray(triangles, dtype=np.int64)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-    if tri.ndim != 2 or tri.shape[1] != 3:
-        raise ValueError(f"triangles must have shape (m, 3), got {tri.shape}")
-    if len(tri) and (tri.min() < 0 or tri.max() >= len(pts)):
-        raise ValueError(f"triangles index vertices outside 0..{len(pts) - 1}")
+    tri = triangle_array(triangles).astype(np.int64)
+    vertex_indices(tri, len(pts))
     if not np.all(np.isfinite(pts)):
         raise ValueError("points hold NaN or infinity; nothing sensible to draw")
     faces = np.column_stack([np.full(len(tri), 3, dtype=np.int64), tri]).ravel()
