@@ -274,6 +274,94 @@ def test_bad_start_raises():
         continuation(Nowhere(), np.zeros(2), 0.0, ds=0.1, log=None)
 
 
+class Fold:
+    """r = u² + λ − 1 (Π = u³/3 + (λ − 1) u): a fold at u = 0, λ = 1."""
+
+    def set_parameter(self, lam):
+        self.lam = lam
+
+    def energy(self, u):
+        return u[0] ** 3 / 3 + (self.lam - 1) * u[0]
+
+    def gradient(self, u):
+        return np.array([u[0] ** 2 + self.lam - 1])
+
+    def hessian(self, u):
+        return sp.csr_matrix([[2 * u[0]]])
+
+
+def test_bad_arguments_and_a_singular_start_are_named():
+    def follow(problem=None, u0=np.zeros(2), lam0=0.0, **kw):
+        return continuation(problem or Pitchfork(), u0, lam0, **({"ds": 0.1, "log": None, "max_steps": 2} | kw))
+
+    for kw, words in (({"weights": [1.0, 0.0]}, "weights must be finite and > 0"),
+                      ({"lam0": np.nan}, "lam0 must be a finite number"),
+                      ({"lam_stop": "one"}, "lam_stop must be a number, got 'one'"),
+                      ({"parameter_scale": "big"}, "parameter_scale must be a number"),
+                      ({"cluster_tol": np.nan}, "cluster_tol must be a number in"),
+                      ({"dip_tol": -1}, r"dip_tol must be a number in \[0, 1\]"),
+                      ({"problem": Fold(), "u0": np.ones(2)}, r"gradient\(u\) returned shape \(1,\) for 2 unknowns")):
+        with pytest.raises(ValueError, match=words):
+            follow(**kw)
+    # a start exactly at the fold (or branch point) converges but has no tangent: say so
+    for problem, u0 in ((Fold(), np.zeros(1)), (Pitchfork(), np.array([1.0, 0.0]))):
+        with pytest.raises(ContinuationError, match="equilibrium without a tangent there: a singular point"):
+            follow(problem, u0, 1.0)
+    b = follow(Fold(), np.ones(1), 0.0, ds=0.2, max_steps=14, stop_at="fold")       # one kind, as a string
+    assert b.status == "fold" and b.special_points[0].located
+
+
+def test_calls_after_a_special_point_see_the_accepted_parameter():
+    """record(u), accept(u) and the callback run at the point's own parameter, also after a location."""
+    class Watched(Pitchfork):
+        def accept(self, u):
+            seen.append(("accept", self.lam))
+
+    seen = []
+    problem = Watched()
+    b = continuation(problem, np.zeros(2), 0.0, ds=0.3, ds_max=0.3, lam_stop=1.5, log=None,
+                     record=lambda u: {"problem_parameter": problem.lam},
+                     callback=lambda br, row: seen.append(("last", br.last[1], row["parameter"])))
+    assert any(r["special"] == "BP" for r in b.rows)                 # located between steps 4 and 5
+    for r in b.rows:
+        assert r["problem_parameter"] == r["parameter"]
+    accepted = [r["parameter"] for r in b.rows if not r["special"]][1:]
+    assert [x[1] for x in seen if x[0] == "accept"] == accepted
+    assert all(x[1] == x[2] for x in seen if x[0] == "last")
+    assert problem.lam == b.last[1] == 1.5
+
+
+def test_a_detected_point_whose_location_fails_is_reported_not_dropped():
+    class FoldGap(Fold):               # refuses the parameters around the fold: the location fails
+        def set_parameter(self, lam):
+            if 0.9999 < lam < 1.0001:
+                raise ValueError("refused")
+            self.lam = lam
+
+    said = []
+    b = continuation(FoldGap(), np.ones(1), 0.0, ds=0.2, ds_max=0.2, max_steps=12, stop_at=("fold",), log=said.append)
+    assert b.status == "fold" and len(b.special_points) == 1
+    p = b.special_points[0]
+    assert not p.located and p.kind == "fold" and "location failed" in p.info["reason"]
+    assert p.bracket[0] < 1.0 and p.bracket[1] > 0.99 and p.n_negative_before == 0 and p.n_negative_after == 1
+    assert any("not located" in line for line in said) and "not located" in p.summary()
+    assert [r["special"] for r in b.rows].count("LP") == 1
+
+
+def test_a_missed_landing_on_lam_stop_stops_there_and_says_so():
+    class Refuses(Pitchfork):          # lam_stop itself is refused: the step crosses it, landing fails
+        def set_parameter(self, lam):
+            if lam == 1.0:
+                raise ValueError("refused")
+            self.lam = lam
+
+    for log in (None, print):
+        b = continuation(Refuses(), np.zeros(2), 0.0, ds=0.3, ds_max=0.3, lam_stop=1.0, max_steps=12, log=log,
+                         detect=False)
+        assert b.status == "lam_stop" and "could not land" in b.message
+        assert len(b.rows) < 8 and 1.0 < b.rows[-1]["parameter"] < 1.3
+
+
 # ----------------------------------------------------------------------------- output
 
 def test_csv_special_points_and_table(tmp_path):

@@ -1071,7 +1071,7 @@ class ContinuationRunner(BaseRunner):
 
     def _switch_point(self):
         for p in self.sp_objects:
-            if p.kind == "branch":
+            if p.kind == "branch" and p.located:       # an unlocated one has no mode to switch along
                 return p
         return None
 
@@ -1277,7 +1277,9 @@ class ContinuationRunner(BaseRunner):
         info = {"branch": label, "kind": sp.kind, "label": sp.label, "parameter": sp.parameter,
                 "multiplicity": sp.multiplicity, "n_negative_before": sp.n_negative_before,
                 "n_negative_after": sp.n_negative_after, "eigenvalues": list(np.asarray(sp.eigenvalues)[:6]),
-                "file": str(path.relative_to(self.rd.path))}
+                "located": sp.located, "file": str(path.relative_to(self.rd.path))}
+        if not sp.located:
+            info["bracket"] = list(sp.bracket)
         if self.flat and self.r2 is not None and sp.modes.shape[1]:
             from ..analysis import count_wrinkles
             try:
@@ -1288,6 +1290,10 @@ class ContinuationRunner(BaseRunner):
             except ValueError:
                 pass
         self.specials.append(info)
+        if not sp.located:
+            self.p.say(f"  found {sp.label} between {self.param} = {sp.bracket[0]:.8g} and {sp.bracket[1]:.8g}, not "
+                       f"located ({sp.info.get('reason', '')})")
+            return
         self.p.say(f"  found {sp.label} at {self.param} = {sp.parameter:.8g} (multiplicity {sp.multiplicity}"
                    + (f", mode with {info['mode_wrinkles']} waves" if "mode_wrinkles" in info else "") + ")")
 

@@ -123,6 +123,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._checks import finite
 from .linear import LinearSolverError, factorize
 from .newton import NewtonError, check_unknowns, minimize
 
@@ -259,8 +260,11 @@ class GrowthParameter(_ModelAdapter):
 
 @dataclass
 class SpecialPoint:
-    """A located fold ("fold"), branch point ("branch") or possible symmetric bifurcation.
+    """A fold ("fold"), branch point ("branch") or possible symmetric bifurcation ("possible_branch").
 
+    ``located``: False when the point was detected (dλ/ds or the inertia changed sign over a
+    step) but its location failed; it is then reported at the step's end, with ``bracket`` the
+    step's parameter range, no ``modes`` and ``info["reason"]``.
     ``u``, ``parameter``: the state; ``tangent``: (t_u, t_λ) of the branch there;
     ``eigenvalues``: the eigenvalues of K nearest zero there, ascending; ``modes``: (n, multiplicity) the
     critical eigenvector(s) (Euclidean-orthonormal, each with its largest entry positive);
@@ -292,6 +296,10 @@ class SpecialPoint:
         return LABELS.get(self.kind, self.kind)
 
     def summary(self) -> str:
+        if not self.located:
+            return (f"{self.label} between parameters {self.bracket[0]:.10g} and {self.bracket[1]:.10g}, not located "
+                    f"({self.info.get('reason', '')}), negative eigenvalues {self.n_negative_before} -> "
+                    f"{self.n_negative_after}")
         return (f"{self.label} at parameter {self.parameter:.10g} (s = {self.s:.6g}), multiplicity "
                 f"{self.multiplicity}, negative eigenvalues {self.n_negative_before} -> {self.n_negative_after}, "
                 f"eigenvalues {np.array2string(np.asarray(self.eigenvalues)[:6], precision=3)}")
@@ -322,6 +330,7 @@ class Branch:
         self.parameter_scale = parameter_scale
         self.wall_s = 0.0
         self.origin: SpecialPoint | None = None   # the branch point a switched branch starts from
+        self._last = None
 
     def __len__(self):
         return len(self.rows)
@@ -349,7 +358,7 @@ class Branch:
 
     @property
     def last(self):
-        """(u, lam) of the last accepted point."""
+        """(u, lam) of the last accepted point (also inside a callback; None before the first)."""
         return self._last
 
     def to_csv(self, path) -> Path:
@@ -449,6 +458,7 @@ class _Point:
     eig_offset: int | None = None            # eigenvalues[i] is the (eig_offset + i)-th smallest
     energy: float = math.nan
     tangent_failed: bool = False
+    predictor_residual: float = 0.0          # joins the branch's residual scale when the point is accepted
 
 
 class _Engine:
@@ -485,16 +495,23 @@ class _Engine:
     def residual(self, u, lam):
         self.set(lam)
         self.counts["gradient"] += 1
-        return np.asarray(self.p.gradient(u), float)
+        r = np.asarray(self.p.gradient(u), float)
+        if r.shape != (self.n,):
+            raise ValueError(f"problem.gradient(u) returned shape {r.shape} for {self.n} unknowns; it must return "
+                             f"one value per unknown (is u0 the problem's vector of unknowns?)")
+        return r
 
     def dlam(self, u, lam):
         self.set(lam)
         if hasattr(self.p, "parameter_derivative"):
             try:
-                return np.asarray(self.p.parameter_derivative(u), float)
+                gl = np.asarray(self.p.parameter_derivative(u), float)
             except ValueError as exc:   # its difference step left the parameter's range
                 self._lam = None        # the problem's parameter may be left at the refused value
                 raise _StepFailure(f"∂r/∂λ at parameter {lam:.9g}: {exc}") from None
+            if gl.shape != (self.n,):
+                raise ValueError(f"problem.parameter_derivative(u) returned shape {gl.shape} for {self.n} unknowns")
+            return gl
         h = self.fd_step * max(abs(lam), self.lam_scale)
         gp = self.residual(u, lam + h)
         gm = self.residual(u, lam - h)
@@ -504,7 +521,11 @@ class _Engine:
     def hessian(self, u, lam):
         self.set(lam)
         self.counts["hessian"] += 1
-        return sp.csr_matrix(self.p.hessian(u))
+        K = sp.csr_matrix(self.p.hessian(u))
+        if K.shape != (self.n, self.n):
+            raise ValueError(f"problem.hessian(u) returned shape {K.shape} for {self.n} unknowns; it must be "
+                             f"({self.n}, {self.n})")
+        return K
 
     def factor(self, K):
         """Symmetric-indefinite factorisation of K, or None when K is (numerically) singular."""
@@ -636,10 +657,11 @@ class _Engine:
     def correct(self, u_p, lam_p, t=None, lam_fixed=None, max_dist=None, update_scale=True):
         """Newton from the predictor on r = 0 and the hyperplane ⟂ t (or at fixed λ). Raises _StepFailure.
 
-        Converged when |r| ≤ rtol · scale + atol, scale the largest predictor residual (and
-        |g_λ| · parameter_scale) seen on the branch (``update_scale=False``: this corrector's
-        own first residual, not remembered: for a start far from equilibrium), or when the
-        Newton correction is below xtol in the weighted norm.
+        Converged when |r| ≤ rtol · scale + atol, scale the largest of this corrector's first
+        residual, the predictor residuals of the accepted steps and |g_λ| · parameter_scale seen
+        on the branch, or when the Newton correction is below xtol in the weighted norm. The
+        point carries its first residual (``predictor_residual``; 0 with ``update_scale=False``,
+        for a start far from equilibrium) for the caller to add to the scale on acceptance.
         """
         u = np.array(u_p, float)
         lam = float(lam_p if lam_fixed is None else lam_fixed)
@@ -657,8 +679,6 @@ class _Engine:
             if res0 is None:
                 res0 = res
                 scale = max(self.rscale, res)
-                if update_scale:
-                    self.rscale = scale
             if res <= self.rtol * scale + self.atol or last_step <= self.xtol:
                 break
             if it == self.max_iter:
@@ -684,7 +704,7 @@ class _Engine:
             if max_dist is not None and self.norm(u - u_p, lam - lam_p) > max_dist:
                 raise _StepFailure(f"corrector left the neighbourhood of the predictor "
                                    f"(distance {self.norm(u - u_p, lam - lam_p):.3g} > {max_dist:.3g})")
-        P = _Point(u, lam, iterations=it)
+        P = _Point(u, lam, iterations=it, predictor_residual=res0 if update_scale else 0.0)
         if K is not None and last_step <= self.xtol:
             P.K, P.fac = K, fac  # the last Hessian was taken a negligible distance away
         return P
@@ -757,7 +777,7 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
         (defaults: ds_min = ds/1000, ds_max = 10 ds).
     lam_stop : stop exactly at this parameter value (when a step crosses it).
     max_steps : number of accepted steps.
-    weights : per-unknown weights of the norm (default ``problem.dof_weights()`` or ones).
+    weights : per-unknown weights of the norm, > 0 (default ``problem.dof_weights()`` or ones).
     parameter_scale : scale of λ in the norm (default ``problem.parameter_scale`` or 1).
     direction : +1 / -1: initial sense of λ (ignored with ``initial_tangent``).
     record : ``record(u) -> dict`` of extra columns (norms, point values); default:
@@ -766,11 +786,11 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     detect : locate folds, branch points and dips (needs ``n_eigs`` ≥ 1 for dips).
     n_eigs : eigenvalues of smallest magnitude recorded per step, ascending (0: none; the
         inertia, i.e. the number of negative eigenvalues, is always recorded).
-    stop_at : kinds after whose detection to stop: "fold", "branch".
+    stop_at : kinds after whose detection to stop: "fold", "branch" (one, or a sequence).
     initial_tangent : (t_u, t_λ) to orient the start (used by :func:`switch_branch`).
     rtol, atol, xtol : corrector convergence, |r| ≤ rtol·scale + atol (scale: the largest
-        predictor residual or |g_λ|·parameter_scale seen on the branch) or a Newton
-        correction ≤ xtol in the weighted norm.
+        predictor residual of the accepted steps, or |g_λ|·parameter_scale, seen on the branch)
+        or a Newton correction ≤ xtol in the weighted norm.
     locate_tol : arclength tolerance of the location of special points.
     cluster_tol : relative parameter tolerance of the multiplicity count.
     dip_tol : an eigenvalue that dips below dip_tol × its neighbours' values flags "BP?".
@@ -788,15 +808,17 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     if weights.ndim and weights.shape != (n,):
         raise ValueError(f"weights must be a number or one per unknown (shape ({n},)), got shape {weights.shape}")
     weights = np.broadcast_to(weights, (n,)).copy()
-    if np.any(weights < 0) or not np.all(np.isfinite(weights)):
-        raise ValueError("weights must be finite and >= 0")
+    if not (np.all(weights > 0) and np.all(np.isfinite(weights))):
+        # a zero weight would also leave its unknown out of the corrector's step test (xtol)
+        raise ValueError("weights must be finite and > 0 (a small weight makes an unknown count little in the "
+                         "arclength)")
     if parameter_scale is None:
         parameter_scale = getattr(problem, "parameter_scale", 1.0)
-    if not (np.isfinite(parameter_scale) and parameter_scale > 0):
-        raise ValueError(f"parameter_scale must be a finite number > 0, got {parameter_scale}")
-    if lam_stop is not None and not np.isfinite(lam_stop):
-        raise ValueError(f"lam_stop must be a finite number (or None), got {lam_stop}")
-    ds = float(ds)
+    parameter_scale = finite("parameter_scale", parameter_scale, 0.0, lo_open=True, text="(0, inf)")
+    lam0 = finite("lam0", lam0)
+    if lam_stop is not None:
+        lam_stop = finite("lam_stop", lam_stop, text="(-inf, inf), or None")
+    ds = finite("ds", ds, 0.0, lo_open=True, text="(0, inf)")
     ds_min = ds / 1000.0 if ds_min is None else float(ds_min)
     ds_max = 10.0 * ds if ds_max is None else float(ds_max)
     if not (0 < ds_min <= ds <= ds_max < math.inf):
@@ -805,7 +827,8 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
         raise ValueError(f"direction must be +1 or -1, got {direction}")
     for name, v, lo, hi in (("grow", grow, 1.0, 100.0), ("max_turn_deg", max_turn_deg, 1e-6, 180.0),
                             ("rtol", rtol, 0.0, 1.0), ("atol", atol, 0.0, math.inf), ("xtol", xtol, 0.0, 1.0),
-                            ("locate_tol", locate_tol, 0.0, math.inf), ("fd_step", fd_step, 1e-14, 0.1)):
+                            ("locate_tol", locate_tol, 0.0, math.inf), ("fd_step", fd_step, 1e-14, 0.1),
+                            ("cluster_tol", cluster_tol, 0.0, 1.0), ("dip_tol", dip_tol, 0.0, 1.0)):
         if not (isinstance(v, (int, float, np.integer, np.floating)) and lo <= v <= hi and not math.isnan(v)):
             raise ValueError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
     for name, v, lo, hi in (("max_steps", max_steps, 0, 10**7), ("n_eigs", n_eigs, 0, 1000),
@@ -814,6 +837,7 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
             raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
     n_eigs = min(n_eigs, n)   # a table column per eigenvalue: no more than there are
+    stop_at = (stop_at,) if isinstance(stop_at, str) else tuple(stop_at)
     bad = set(stop_at) - {"fold", "branch"}
     if bad:
         raise ValueError(f"stop_at kinds must be among 'fold', 'branch', got {sorted(bad)}")
@@ -827,7 +851,7 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     cos_max = math.cos(math.radians(max_turn_deg))
 
     # ---- the first point
-    lam0 = float(lam0)
+    failed = "did not converge"
     try:
         if initial_tangent is None:
             # Newton at fixed λ finds the equilibrium next to u0 whatever its stability; only
@@ -841,6 +865,8 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
                 except NewtonError as exc:
                     raise _StepFailure(f"Newton and minimisation failed ({exc})") from None
                 A = eng.correct(u_start, lam0, lam_fixed=lam0, update_scale=False)
+            failed = ("is an equilibrium without a tangent there: a singular point (fold or branch point); start "
+                      "beside it or give initial_tangent")
             A = eng.finish(A, None, direction)
         else:
             t0u = np.asarray(initial_tangent[0], float)
@@ -854,7 +880,11 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
             A = eng.finish(A, t0)
     except _StepFailure as exc:
         eng.release()
-        raise ContinuationError(f"the first point at parameter {lam0:.6g} did not converge: {exc}") from None
+        raise ContinuationError(f"the first point at parameter {lam0:.6g} {failed} ({exc})") from None
+    except BaseException:
+        eng.release()
+        raise
+    branch._last = (A.u, A.lam)
 
     if lam_stop is not None:
         if abs(lam_stop - A.lam) <= 1e-12 * max(abs(lam_stop), parameter_scale):
@@ -899,23 +929,23 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
                     break
                 continue
             sigma_B = eng.dot(A.t_u, A.t_lam, B.u - A.u, B.lam - A.lam)
-            landed = False
+            landed = None      # at lam_stop: "exactly", or "missed" when the step crossed it but landing failed
             near = lam_stop is not None and abs(B.lam - lam_stop) <= 1e-9 * max(abs(lam_stop), eng.lam_scale)
             if near:
-                landed = True
+                landed = "exactly"
             elif lam_stop is not None and A.lam != lam_stop and (A.lam - lam_stop) * (B.lam - lam_stop) <= 0:
                 L = _land(eng, A, B, lam_stop, ds)
                 if L is not None:
                     B = L
                     sigma_B = eng.dot(A.t_u, A.t_lam, B.u - A.u, B.lam - A.lam)
-                    landed = True
-                elif log:
-                    log(f"    could not land on parameter {lam_stop:.8g}; stopping at {B.lam:.8g}")
-                    landed = True
+                    landed = "exactly"
+                else:
+                    landed = "missed"
             step += 1
             found = []
             if detect:
                 found = ctx.detect(A, B, s, sigma_B, step - 1, history)
+            eng.set(B.lam)     # the location's trial points moved the problem's parameter
             s += sigma_B
             ctx.add_row(B, s, step, ds=sigma_B)
             if hasattr(problem, "accept"):
@@ -926,11 +956,18 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
                     f"dλ/ds {B.t_lam:+.3g}  n_neg {B.n_negative}{ev}")
             history = (history + [(B, s)])[-3:]
             A = B
+            branch._last = (A.u, A.lam)
+            # only accepted steps: a diverged trial's residual must not loosen the later tests
+            eng.rscale = max(eng.rscale, B.predictor_residual)
             if callback is not None and bool(callback(branch, branch.rows[-1])):   # np.True_ and 1 stop too
                 stop = ("callback", "the callback asked to stop")
                 break
-            if landed:
+            if landed == "exactly":
                 stop = ("lam_stop", f"reached parameter {B.lam:.10g}")
+                break
+            if landed == "missed":
+                stop = ("lam_stop", f"the step crossed lam_stop = {lam_stop:.10g} but the corrector could not land "
+                                    f"on it; stopped at parameter {B.lam:.10g}")
                 break
             kinds = {p.kind for p in found}
             if "fold" in stop_at and "fold" in kinds:
@@ -942,9 +979,12 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
             if B.iterations <= fast_iterations:
                 ds = min(ds * grow, ds_max)
     finally:
+        try:
+            eng.set(A.lam)     # a failed trial step may have left the problem at another parameter
+        except _StepFailure:
+            pass
         eng.release()
     branch.status, branch.message = stop
-    branch._last = (A.u, A.lam)
     if not keep_states and branch.states:
         branch.states[-1] = (A.u, A.lam)
     branch.wall_s = time.perf_counter() - t_start
@@ -1042,18 +1082,48 @@ class _Context:
     def detect(self, A, B, s_A, sigma_B, step, history):
         found = []
         cache = {0.0: A, float(sigma_B): B}
+        kind = None
         try:
             fold = np.isfinite(A.t_lam) and np.isfinite(B.t_lam) and A.t_lam * B.t_lam < 0
             if fold:
+                kind = "fold"
                 found += self._locate_fold(A, B, s_A, sigma_B, step, cache)
             elif A.n_negative is not None and B.n_negative is not None and A.n_negative != B.n_negative:
+                kind = "branch"
                 found += self._locate_crossings(A, 0.0, A, sigma_B, B, s_A, step, cache)
+            kind = None
             if not found and self.n_eigs > 0 and len(history) >= 2:
                 found += self._detect_dip(history + [(B, s_A + sigma_B)], step, cache, A, s_A)
         except _StepFailure as exc:
-            if self.log:
-                self.log(f"    location of a special point failed: {exc}")
+            if kind is None:        # a possible (dip) point: nothing was crossed
+                if self.log:
+                    self.log(f"    location of a possible branch point failed: {exc}")
+            elif not any(p.kind == kind for p in found):
+                found.append(self._unlocated(kind, A, B, s_A, sigma_B, step, f"its location failed: {exc}"))
         return found
+
+    def _unlocated(self, kind, A, B, s_A, sigma_B, step, reason, crossings=None, n_before=None):
+        """A special point detected in the step A → B but not located: reported at B, ``located=False``.
+
+        The step's end is a converged state with the new inertia; its parameter is within the
+        step of the special point (the bracket). It has no critical modes (no branch switching).
+        """
+        n_after = B.n_negative
+        n_before = A.n_negative if n_before is None else n_before
+        info = {"reason": reason}
+        if crossings is not None:
+            info["crossings"] = crossings
+        p = SpecialPoint(kind=kind, parameter=float(B.lam), s=s_A + sigma_B, u=B.u.copy(), tangent=(B.t_u, B.t_lam),
+                         eigenvalues=np.array([math.nan]) if B.eigenvalues is None else B.eigenvalues,
+                         modes=np.zeros((len(B.u), 0)), multiplicity=0, n_negative_before=n_before,
+                         n_negative_after=n_after, step=step, bracket=tuple(sorted((A.lam, B.lam))), located=False,
+                         info=info, weights=self.eng.w, parameter_scale=self.eng.lam_scale)
+        self.branch.special_points.append(p)
+        self.add_row(B, s_A + sigma_B, step, ds=sigma_B, special=p.label)
+        if self.log:
+            self.log(f"    {p.label} detected between parameters {A.lam:.8g} and {B.lam:.8g} but not located "
+                     f"({reason}); reported at {B.lam:.8g}")
+        return p
 
     def _illinois(self, f, a, fa, b, fb):
         """Root of f on [a, b] (fa, fb of opposite signs) by the Illinois method.
@@ -1128,9 +1198,12 @@ class _Context:
             if located == MAX_CROSSINGS_PER_STEP:
                 # each location costs several factorisations: 175 crossings in one step took minutes
                 # each without a word; the first ones are where stability is lost
-                if self.log:
-                    self.log(f"    the inertia jumps from {na} to {nb} negative eigenvalues in one step: the first "
-                             f"{located} crossings are located, the others are not (a smaller ds_max resolves them)")
+                rest = (nb - j) if up else (j - nb + 1)
+                out.append(self._unlocated("branch", A, Pb, s_A, self.eng.dot(A.t_u, A.t_lam, Pb.u - A.u,
+                                                                                 Pb.lam - A.lam), step,
+                                           f"the inertia jumps from {na} to {nb} in one step; {located} crossings "
+                                           f"are located, {rest} are not (a smaller ds_max resolves them)",
+                                           crossings=rest, n_before=j if up else j + 1))
                 break
             located += 1
 
@@ -1150,9 +1223,10 @@ class _Context:
                 j += 1 if up else -1
                 continue
             if fa * fb > 0:
-                if self.log:
-                    self.log(f"    eigenvalue {j} does not change sign between parameters {Pa.lam:.8g} and "
-                             f"{Pb.lam:.8g} although the inertia does; branch point not located")
+                out.append(self._unlocated("branch", A, Pb, s_A, self.eng.dot(A.t_u, A.t_lam, Pb.u - A.u,
+                                                                                Pb.lam - A.lam), step,
+                                           f"eigenvalue {j} does not change sign between parameters {Pa.lam:.8g} "
+                                           f"and {Pb.lam:.8g} although the inertia does", n_before=j if up else j + 1))
                 break
             best, (a, b) = self._illinois(f, sa, fa, sb, fb)
             if best is None:
@@ -1326,6 +1400,10 @@ def switch_branch(problem, special_point: SpecialPoint, mode=None, amplitude=Non
     if p.kind not in ("branch", "possible_branch"):
         raise ValueError(f"branch switching needs a branch point, got a {p.kind!r} point "
                          f"(at a fold the branch turns; continue through it instead)")
+    if not p.located or p.modes.shape[1] == 0:
+        raise ValueError(f"the branch point between parameters {p.bracket[0]:.8g} and {p.bracket[1]:.8g} was detected "
+                         f"but not located, so it has no critical mode to switch along ({p.info.get('reason', '')}); "
+                         "follow the branch again with a smaller ds_max")
     n = len(p.u)
     if mode is None:
         phi = p.modes[:, 0]
