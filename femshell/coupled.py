@@ -110,7 +110,7 @@ from .chemistry import ReactionDiffusion, curvature_source
 from .geometry import element_to_vertex, mean_curvature
 from .growth import THICKNESS_MODES, contractility, element_average, stretch, target_metric, target_thickness
 from .shell import Material, RestState, ShellModel
-from .solvers.linear import LinearSolverError, Refactorizer
+from .solvers.linear import BACKENDS, LinearSolverError, Refactorizer
 from .solvers.newton import NewtonError, minimize
 
 # Bitwise reproducible resumes need a run-to-run reproducible linear solver. Threaded MKL
@@ -204,6 +204,7 @@ class MechanochemicalModel:
         Material(self.E, self.nu, self.membrane_law)    # checks the law
         if self.rest_curvature not in REST_CURVATURES:
             raise ValueError(f"rest_curvature must be one of {REST_CURVATURES}, got {self.rest_curvature!r}")
+        _store_numbers(self)
 
     # derived quantities
     @property
@@ -377,12 +378,39 @@ class InitialSpot:
     distance: str = "geodesic"
 
     def field(self, points, params: MechanochemicalModel) -> np.ndarray:
-        amp = params.c_max if self.amplitude is None else self.amplitude
-        if not math.isfinite(amp):
-            raise ValueError("spot amplitude defaults to c_max = w Hs / beta, infinite for beta = 0: give one")
+        if self.amplitude is None:
+            amp = params.c_max
+            if not math.isfinite(amp):
+                raise ValueError("spot amplitude defaults to c_max = w Hs / beta, infinite for beta = 0: give one")
+        else:
+            amp = _finite("spot amplitude", self.amplitude, 0.0)
         width = params.h0 if self.width is None else self.width
         return gaussian_spot(points, amp, width, pole=self.pole, elongation=self.elongation,
                              direction=self.direction, distance=self.distance)
+
+
+def _integer(name, v, lo: int, what: str | None = None) -> int:
+    """A ValueError naming ``name`` unless v is a whole number >= lo (an int, or a float like 3.0)."""
+    if isinstance(v, np.ndarray) and v.shape == ():      # as a checkpoint loads it
+        v = v.item()
+    ok = (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+          and math.isfinite(v) and int(v) == v and v >= lo)
+    if not ok:
+        raise ValueError(f"{name} must be {what or f'an integer >= {lo}'}, got {v!r}")
+    return int(v)
+
+
+def _store_numbers(obj):
+    """Store the checked numeric fields of a frozen dataclass as float / int: a number given as a
+    string ("1e-3", as YAML 1.1 reads it) passes the checks and must not stay a string."""
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        if v is None or isinstance(v, (bool, tuple)):
+            continue
+        if "float" in str(f.type):
+            object.__setattr__(obj, f.name, float(v))
+        elif "int" in str(f.type):
+            object.__setattr__(obj, f.name, int(v))
 
 
 # ----------------------------------------------------------------------------- time stepping
@@ -461,9 +489,10 @@ class TimeStepping:
     newton_max_iter, newton_backend : passed to :func:`~femshell.solvers.newton.minimize`.
     quasi_newton : each Newton solve first takes up to this many quasi-Newton iterations on
         the factorisation of the last converged state's Hessian (its stability check), which
-        the loop keeps (``minimize(quasi_newton=...)``); the converged state is then checked
-        by a fresh factorisation as before. 0: plain Newton (one more Hessian assembly and
-        factorisation per step).
+        the loop keeps (``minimize(quasi_newton=...)``; after a cut, the factorisation the
+        failed attempt left); the converged state is then checked by a fresh factorisation as
+        before. 0: plain Newton (one more Hessian assembly and factorisation per step). Needs
+        a Cholesky factor, so PARDISO: with SuperLU every solve is plain Newton.
     ramp_ds : largest stretch increment of the initial equilibrium (growth ramped from
         s = 1 to s(c0), with a secant predictor; cut on Newton failure, grown by 1.5 after success).
     predictor : start Newton from the secant prediction u + (h/h_prev)(u − u_prev) when
@@ -523,29 +552,26 @@ class TimeStepping:
         _finite("ds_max", self.ds_max, 0.0, lo_open=True, text="(0, inf)")
         _finite("grow", self.grow, 1.0)
         _finite("safety", self.safety, 0.0, 1.0, lo_open=True, text="(0, 1]")
-        if int(self.max_cuts) != self.max_cuts or self.max_cuts < 0:
-            raise ValueError(f"max_cuts must be an integer >= 0, got {self.max_cuts!r}")
+        _integer("max_cuts", self.max_cuts, 0)
         _finite("stationary_rate_c", self.stationary_rate_c, 0.0)
         _finite("stationary_rate_x", self.stationary_rate_x, 0.0)
-        if int(self.stationary_steps) != self.stationary_steps or self.stationary_steps < 1:
-            raise ValueError(f"stationary_steps must be an integer >= 1, got {self.stationary_steps!r}")
+        _integer("stationary_steps", self.stationary_steps, 1)
         _finite("stationary_pattern_time", self.stationary_pattern_time, 0.0)
         _finite("stationary_pattern_tol", self.stationary_pattern_tol, 0.0)
         _finite("newton_rtol", self.newton_rtol, 0.0, lo_open=True, text="(0, inf)")
         _finite("newton_atol_strain", self.newton_atol_strain, 0.0)
-        if int(self.newton_max_iter) != self.newton_max_iter or self.newton_max_iter < 1:
-            raise ValueError(f"newton_max_iter must be an integer >= 1, got {self.newton_max_iter!r}")
-        if int(self.quasi_newton) != self.quasi_newton or self.quasi_newton < 0:
-            raise ValueError(f"quasi_newton must be an integer >= 0, got {self.quasi_newton!r}")
-        if int(self.newton_stall) != self.newton_stall or self.newton_stall < 0:
-            raise ValueError(f"newton_stall must be an integer >= 0, got {self.newton_stall!r}")
+        _integer("newton_max_iter", self.newton_max_iter, 1)
+        _integer("quasi_newton", self.quasi_newton, 0)
+        _integer("newton_stall", self.newton_stall, 0)
+        if self.newton_backend not in BACKENDS:
+            raise ValueError(f"newton_backend must be one of {BACKENDS}, got {self.newton_backend!r}")
         _finite("ramp_ds", self.ramp_ds, 0.0, lo_open=True, text="(0, inf)")
         _finite("snap_ds", self.snap_ds, 0.0)
         _finite("feedback_amplification", self.feedback_amplification, 0.0, 1.0)
-        if int(self.snap_max_iter) != self.snap_max_iter or self.snap_max_iter < 0:
-            raise ValueError(f"snap_max_iter must be an integer >= 0, got {self.snap_max_iter!r}")
-        if self.max_steps is not None and (int(self.max_steps) != self.max_steps or self.max_steps < 0):
-            raise ValueError(f"max_steps must be None or an integer >= 0, got {self.max_steps!r}")
+        _integer("snap_max_iter", self.snap_max_iter, 0)
+        if self.max_steps is not None:
+            _integer("max_steps", self.max_steps, 0, "None or an integer >= 0")
+        _store_numbers(self)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -823,7 +849,7 @@ class CoupledLoop:
         u = self.u
         u_prev, lam_prev = None, None
         iters = 0
-        cuts = 0
+        cuts = cuts_in_row = 0
         t_start = t_said = time.perf_counter()
         while True:
             trial = min(1.0, lam + dlam)
@@ -837,11 +863,12 @@ class CoupledLoop:
                 why = exc
             if why is not None:
                 cuts += 1
-                if cuts > st.max_cuts or dlam < 1e-6:
+                cuts_in_row += 1
+                if cuts_in_row > st.max_cuts or dlam < 1e-6:
                     self.growth.apply(ones + lam * (target - ones))
                     # measured on thin shells (h = 1e-3 on R = 15): ramp_ds 0.02 and 200 iterations succeed
                     raise CoupledError(f"initial equilibrium: Newton failed at growth fraction {trial:.4g} "
-                                       f"after {cuts} cuts of the ramp ({why}); a smaller ramp_ds (now "
+                                       f"after {cuts_in_row} cuts of one ramp step ({why}); a smaller ramp_ds (now "
                                        f"{st.ramp_ds:g}) and a larger newton_max_iter (now {st.newton_max_iter}) "
                                        "help thin or strongly grown shells")
                 dlam *= 0.5
@@ -849,6 +876,7 @@ class CoupledLoop:
                 continue
             u_prev, lam_prev = u, lam
             u, lam = res.u, trial
+            cuts_in_row = 0
             iters += res.iterations
             self._last_stable = res.stable
             if lam >= 1.0:
@@ -926,95 +954,110 @@ class CoupledLoop:
         reason = ""
         ds = 0.0
         snapped = snap_tried = False
-        while True:
-            remaining = st.t_final - self.t
-            last = dt >= remaining * (1 - 1e-12)
-            h = remaining if last else dt
-            if h < st.dt_min * (1 - 1e-12) and not last:
-                self.growth.apply(self.s)
-                raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: dt = {h:.3g} fell below dt_min = "
-                                   f"{st.dt_min:.3g} ({reason}); the last accepted state is kept"
-                                   + (self._steep_switch_hint(ds) if reason.startswith("max |Δs|") else "")
-                                   + self._non_elliptic_hint())
-            try:
-                c_new = self.chemistry.step(self.c, h, source=source, points=points)
-            except (ValueError, FloatingPointError, ArithmeticError, LinearSolverError) as exc:
-                self.growth.apply(self.s)
-                raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: the chemistry step failed: "
-                                   f"{exc}") from exc
-            if not np.all(np.isfinite(c_new)):
-                ok, reason = False, "non-finite concentration"
-                ds = float("inf")
-                s_new = None
-            else:
-                s_new = self.growth.stretch(c_new)
-                ds = float(np.max(np.abs(s_new - self.s))) if len(s_new) else 0.0
-                ok = ds <= st.ds_max * (1 + 1e-12)
-                reason = "" if ok else f"max |Δs| = {ds:.3g} > ds_max = {st.ds_max:.3g}"
-            res = None
-            if ok:
-                self.growth.apply(s_new)
-                start = self.u
-                if st.predictor and self._u_prev is not None and self._h_prev > 0:
-                    start = self._predict(self.u, self._u_prev, h / self._h_prev)
+        try:
+            while True:
+                snapped = False
+                remaining = st.t_final - self.t
+                last = dt >= remaining * (1 - 1e-12)
+                h = remaining if last else dt
+                if h < st.dt_min * (1 - 1e-12) and not last:
+                    self.growth.apply(self.s)
+                    raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: dt = {h:.3g} fell below dt_min = "
+                                       f"{st.dt_min:.3g} ({reason}); the last accepted state is kept"
+                                       + (self._steep_switch_hint(ds) if reason.startswith("max |Δs|") else "")
+                                       + self._non_elliptic_hint())
                 try:
-                    res = self._newton(start)
-                except NewtonError as exc:
-                    # one snap per step: where it does not settle, the cuts that follow are plain
-                    res = None
-                    if not snap_tried and self._snap_applies(exc, ds):
-                        snap_tried = True
-                        res = self._snap(exc.result, ds)
-                    snapped = res is not None
-                    if not snapped:
-                        ok, reason = False, f"Newton failed: {exc}"
-                why = _rejected(res) if ok else None
-                if why:
-                    ok, reason = False, why
-                if not ok:
-                    self.growth.apply(self.s)           # back to the accepted rest state
-            if ok:
-                break
-            cuts += 1
-            self.n_rejected += 1
-            if cuts > st.max_cuts:
-                raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g} failed after {st.max_cuts} cuts "
-                                   f"(last dt = {h:.3g}: {reason}); the last accepted state is kept"
-                                   + self._non_elliptic_hint())
-            factor = 0.5
-            if math.isfinite(ds) and ds > st.ds_max:
-                factor = min(0.5, max(0.1, st.safety * st.ds_max / ds))
-            dt = h * factor
-            self._say(f"  step {self.step + 1} t = {self.t:.6g}: cut to dt = {dt:.3g} ({reason})")
+                    c_new = self.chemistry.step(self.c, h, source=source, points=points)
+                except (ValueError, FloatingPointError, ArithmeticError, LinearSolverError) as exc:
+                    self.growth.apply(self.s)
+                    raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: the chemistry step failed: "
+                                       f"{exc}") from exc
+                if not np.all(np.isfinite(c_new)):
+                    ok, reason = False, "non-finite concentration"
+                    ds = float("inf")
+                    s_new = None
+                else:
+                    s_new = self.growth.stretch(c_new)
+                    ds = float(np.max(np.abs(s_new - self.s))) if len(s_new) else 0.0
+                    ok = ds <= st.ds_max * (1 + 1e-12)
+                    reason = "" if ok else f"max |Δs| = {ds:.3g} > ds_max = {st.ds_max:.3g}"
+                res = None
+                if ok:
+                    self.growth.apply(s_new)
+                    start = self.u
+                    if st.predictor and self._u_prev is not None and self._h_prev > 0:
+                        start = self._predict(self.u, self._u_prev, h / self._h_prev)
+                    try:
+                        res = self._newton(start)
+                    except NewtonError as exc:
+                        # one snap per step: where it does not settle, the cuts that follow are plain
+                        res = None
+                        if not snap_tried and self._snap_applies(exc, ds):
+                            snap_tried = True
+                            res = self._snap(exc.result, ds)
+                        snapped = res is not None
+                        if not snapped:
+                            ok, reason = False, f"Newton failed: {exc}"
+                    why = _rejected(res) if ok else None
+                    if why:
+                        ok, reason = False, why
+                    if not ok:
+                        self.growth.apply(self.s)           # back to the accepted rest state
+                if ok:
+                    break
+                cuts += 1
+                self.n_rejected += 1
+                if cuts > st.max_cuts:
+                    raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g} failed after {st.max_cuts} cuts "
+                                       f"(last dt = {h:.3g}: {reason}); the last accepted state is kept"
+                                       + self._non_elliptic_hint())
+                factor = 0.5
+                if math.isfinite(ds) and ds > st.ds_max:
+                    factor = min(0.5, max(0.1, st.safety * st.ds_max / ds))
+                dt = h * factor
+                self._say(f"  step {self.step + 1} t = {self.t:.6g}: cut to dt = {dt:.3g} ({reason})")
+        except BaseException:
+            self.growth.apply(self.s)       # an error or Ctrl-C mid-attempt: back to the accepted rest state
+            raise
 
         # accept: all at once (a Ctrl-C here would leave half a step: c new, rest state old)
+        before = self.state_dict()
         with committing():
-            x_old = points
-            c_old = self.c
-            self.c = c_new
-            # a snap is no trend: the secant through it would predict a second jump
-            self._u_prev, self._h_prev = (None, 0.0) if snapped else (self.u, h)
-            self.n_snaps += int(snapped)
-            self.u = res.u
-            self.s = s_new
-            self.t = st.t_final if last else self.t + h
-            self.step += 1
-            self.last_newton_iterations = res.iterations
-            self.newton_total += res.iterations
-            self._last_stable = res.stable
-            self._last_ds = ds
-            was_elliptic = self.non_elliptic == 0
-            self._update_curvature()
-            if was_elliptic:
-                self._say_non_elliptic()
-            self._follow_stationarity(c_old, x_old, h)
-            self.dt = self._next_dt(h, ds, cuts, c_old, source)
-            rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
-            self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
-                      f"(+{res.quasi_newton_iterations} quasi) "
-                      f"cuts {cuts} max c {rec.max_c:.4g} max H {rec.max_H:.4g} ds {ds:.3g} "
-                      f"spots {rec.n_spots} {rec.wall_s:.2f}s{' snapped' if snapped else ''}")
-            return rec
+            try:
+                return self._accept(c_new, s_new, res, h, last, ds, cuts, snapped, points, source, wall0)
+            except BaseException:
+                self.load_state_dict(before)      # an error while committing: not half a step
+                raise
+
+    def _accept(self, c_new, s_new, res, h, last, ds, cuts, snapped, points, source, wall0) -> StepRecord:
+        """Commit the step of length h to the attempt's c, stretch and equilibrium; returns its record."""
+        st = self.stepping
+        x_old = points
+        c_old = self.c
+        self.c = c_new
+        # a snap is no trend: the secant through it would predict a second jump
+        self._u_prev, self._h_prev = (None, 0.0) if snapped else (self.u, h)
+        self.n_snaps += int(snapped)
+        self.u = res.u
+        self.s = s_new
+        self.t = st.t_final if last else self.t + h
+        self.step += 1
+        self.last_newton_iterations = res.iterations
+        self.newton_total += res.iterations
+        self._last_stable = res.stable
+        self._last_ds = ds
+        was_elliptic = self.non_elliptic == 0
+        self._update_curvature()
+        if was_elliptic:
+            self._say_non_elliptic()
+        self._follow_stationarity(c_old, x_old, h)
+        self.dt = self._next_dt(h, ds, cuts, c_old, source)
+        rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
+        self._say(f"step {rec.step:5d} t {rec.t:10.5g} dt {rec.dt:9.3g} newton {rec.newton_iterations:2d} "
+                  f"(+{res.quasi_newton_iterations} quasi) "
+                  f"cuts {cuts} max c {rec.max_c:.4g} max H {rec.max_H:.4g} ds {ds:.3g} "
+                  f"spots {rec.n_spots} {rec.wall_s:.2f}s{' snapped' if snapped else ''}")
+        return rec
 
     def _follow_stationarity(self, c_old, x_old, h: float):
         """Rates of change of c and of the shape over the accepted step of length h, and the stationarity counters.
@@ -1092,12 +1135,14 @@ class CoupledLoop:
         once at the end, whatever the reason, including a failed step (then with the
         last accepted state). A failure does not raise: the result has status "failed"
         and the message. Neither does Ctrl-C (KeyboardInterrupt): the run ends with status
-        "interrupted" on the last accepted state, checkpointed. ``keep_records`` keeps all
-        step records in the result.
+        "interrupted" on the last accepted state, checkpointed. Any other exception (from the
+        callback, or an unexpected solver error) is raised after that checkpoint.
+        ``keep_records`` keeps all step records in the result.
         """
-        if int(checkpoint_every) < 1:
-            raise ValueError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
-        max_steps = self.stepping.max_steps if max_steps is None else max_steps
+        checkpoint_every = _integer("checkpoint_every", checkpoint_every, 1)
+        if wall_time is not None:
+            _finite("wall_time", wall_time, 0.0)
+        max_steps = self.stepping.max_steps if max_steps is None else _integer("max_steps", max_steps, 0)
         t0 = time.perf_counter()
         k = 0
         last = None
@@ -1138,6 +1183,15 @@ class CoupledLoop:
             self.growth.apply(self.s)
             status, message = "interrupted", f"interrupted at t = {self.t:.6g} after {k} step(s) of this run"
             self._say(f"coupled loop {message}")
+        except BaseException:
+            # not a failed step but an error (a callback's, a solver's): raised, after the
+            # accepted steps are checkpointed (unless the checkpoint is what failed)
+            if checkpoint is not None and dirty:
+                try:
+                    checkpoint(self.state_dict(), last)
+                except Exception:
+                    pass
+            raise
         if checkpoint is not None and dirty:
             checkpoint(self.state_dict(), last if last is not None else self.record())
         return RunResult(status, message, k, float(self.t), time.perf_counter() - t0, last, records)
@@ -1195,9 +1249,16 @@ class CoupledLoop:
                              "(other mesh or boundary conditions?)")
         if not (np.all(np.isfinite(c)) and np.all(np.isfinite(u))):
             raise ValueError("state holds non-finite values")
-        self.t = float(state["t"])
-        self.dt = float(state["dt"])
-        self.step = int(state["step"])
+        if np.any(c < 0):
+            raise ValueError(f"state c is negative at {int(np.count_nonzero(c < 0))} vertices (a concentration is >= 0)")
+        t = _finite("state t", state["t"], 0.0)
+        dt = _finite("state dt", state["dt"], 0.0, lo_open=True, text="(0, inf)")
+        step = _integer("state step", state["step"], 0)
+        st = self.stepping
+        self.t = t
+        # the stepping may differ from the run that wrote the state (a new dt_max): stay within it
+        self.dt = min(st.dt_max, max(st.dt_min, dt))
+        self.step = step
         self.c = c
         self.u = u
         self.stationary_count = int(state.get("stationary_count", 0))
@@ -1236,7 +1297,13 @@ class CoupledLoop:
     @classmethod
     def from_state_dict(cls, mesh, params: MechanochemicalModel, state: dict,
                         stepping: TimeStepping | None = None, boundary_conditions=(), log=None) -> "CoupledLoop":
-        """A loop that continues from ``state`` (no initial equilibrium is computed)."""
+        """A loop that continues from ``state`` (no initial equilibrium is computed).
+
+        The state holds no parameters: give the run's own ``params`` and ``stepping`` (None is
+        ``TimeStepping()``, the defaults) to continue it bit for bit. Others are taken as given
+        (continuing a state under new parameters is a use, not an error); the proposed dt is
+        kept within the new stepping's [dt_min, dt_max].
+        """
         loop = cls(mesh, params, stepping, c0=None, boundary_conditions=boundary_conditions,
                    equilibrate=False, log=log)
         loop.load_state_dict(state)

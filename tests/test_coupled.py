@@ -57,6 +57,23 @@ def test_parameter_validation_names_the_parameter():
     assert p.s_max == pytest.approx(1.5)
 
 
+def test_numbers_are_stored_as_numbers_and_integers_are_named():
+    """A number given as a string ("1e-3", as YAML 1.1 reads it) is stored as a float, not kept a string."""
+    p = MechanochemicalModel(beta="1", w="15")
+    assert p.beta == 1.0 and isinstance(p.beta, float) and isinstance(p.w, float)
+    st = TimeStepping(t_final="5", max_cuts=3.0)
+    assert st.t_final == 5.0 and isinstance(st.t_final, float) and st.max_cuts == 3 and isinstance(st.max_cuts, int)
+    for kw, words in (({"max_cuts": np.nan}, "max_cuts must be an integer >= 0, got nan"),
+                      ({"max_cuts": None}, "max_cuts must be an integer >= 0, got None"),
+                      ({"stationary_steps": np.inf}, "stationary_steps must be an integer >= 1, got inf"),
+                      ({"max_steps": 2.5}, "max_steps must be None or an integer >= 0"),
+                      ({"newton_backend": "bogus"}, "newton_backend must be one of")):
+        with pytest.raises(ValueError, match=words):
+            TimeStepping(**kw)
+    with pytest.raises(ValueError, match="spot amplitude must be a finite number"):
+        InitialSpot(amplitude=np.nan).field(np.zeros((3, 3)), p)
+
+
 def test_gaussian_spot(ball):
     c = gaussian_spot(ball.points, 0.75, 1.0)
     top = top_vertex(ball)
@@ -254,6 +271,51 @@ def test_resume_from_state_dict_is_bitwise_identical(ball, spot_run, tmp_path):
     assert np.array_equal(resumed.c, loop.c)
     assert np.array_equal(resumed.u, loop.u)
     assert np.array_equal(resumed.H_vertex, loop.H_vertex)
+
+
+def test_a_state_is_checked_and_its_dt_kept_within_the_new_stepping(ball, spot_run):
+    p, st, loop, initial, states, records = spot_run
+    for key, value, words in (("t", np.nan, "state t must be a finite number"),
+                              ("dt", -1.0, "state dt must be a finite number in"),
+                              ("step", 2.5, "state step must be an integer"),
+                              ("c", -states[2]["c"] - 1.0, "state c is negative")):
+        with pytest.raises(ValueError, match=words):
+            CoupledLoop.from_state_dict(ball, p, dict(states[2], **{key: value}), st)
+    small = CoupledLoop.from_state_dict(ball, p, dict(states[2], dt=1.0), replace(st, dt_max=0.01, dt_initial=0.01))
+    assert small.dt == 0.01
+
+
+def test_an_error_mid_step_is_raised_after_a_checkpoint_on_the_accepted_state(ball, spot_run):
+    """A callback's error (a full disk) is not a failed step: raised, after the accepted steps are checkpointed."""
+    p, st, loop, initial, states, records = spot_run
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+    saved = []
+
+    def disk_full(rec, lp):
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        lp.run(callback=disk_full, checkpoint=lambda state, rec: saved.append(state))
+    assert len(saved) == 1 and saved[0]["step"] == 3 and np.array_equal(saved[0]["c"], loop.c)
+
+
+def test_an_error_in_an_attempt_or_in_the_commit_leaves_the_accepted_state(ball, spot_run, monkeypatch):
+    p, st, loop, initial, states, records = spot_run
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("simulated")
+
+    for where in ("_newton", "_next_dt"):                   # inside an attempt; while the step commits
+        with monkeypatch.context() as m:
+            m.setattr(lp, where, broken)
+            with pytest.raises(RuntimeError, match="simulated"):
+                lp.advance()
+        assert lp.step == 2 and lp.t == states[2]["t"] and lp.dt == states[2]["dt"]
+        assert np.array_equal(lp.c, states[2]["c"]) and np.array_equal(lp.u, states[2]["u"])
+        assert np.array_equal(lp.shell.rest.metric, lp.growth.rest_state(lp.s).metric)
+    rec = lp.advance()                                      # and it goes on as the uninterrupted run
+    assert rec.step == 3 and np.array_equal(lp.c, loop.c) and np.array_equal(lp.u, loop.u)
 
 
 def test_a_step_that_cannot_be_made_keeps_the_last_state(ball, spot_run):
