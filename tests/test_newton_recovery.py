@@ -373,3 +373,95 @@ def test_load_stepping_from_a_load_factor_of_zero():
                       ({"stall": -1}, "stall must be an integer >= 1"), ({"residual_scale": -1.0}, "residual_scale")):
         with pytest.raises(ValueError, match=words):
             minimize(model, u0, log=None, **kw)
+
+
+class DoubleWell:
+    """Π = (x² − 1)²/4 + y²/2: a saddle at the origin, minima at x = ±1 (minimize's docstring example)."""
+
+    def energy(self, u):
+        return (u[0] ** 2 - 1) ** 2 / 4 + u[1] ** 2 / 2
+
+    def gradient(self, u):
+        return np.array([u[0] ** 3 - u[0], u[1]])
+
+    def hessian(self, u):
+        return sp.csr_matrix(np.diag([3 * u[0] ** 2 - 1, 1.0]))
+
+
+def test_a_saddle_met_on_the_last_iteration_is_not_returned_as_converged():
+    """Stepping off the saddle on the last allowed iteration leaves a point that is no equilibrium."""
+    with pytest.raises(NewtonError, match="left a saddle on its last iteration") as err:
+        minimize(DoubleWell(), np.array([0.0, 0.3]), stable=True, max_iter=1, log=None)
+    r = err.value.result
+    assert not r.converged and r.residual == pytest.approx(np.linalg.norm(DoubleWell().gradient(r.u)))
+    r = minimize(DoubleWell(), np.array([0.0, 0.3]), stable=True, log=None)
+    assert r.converged and r.stable and abs(abs(r.u[0]) - 1) < 1e-8
+
+
+def test_a_saddle_of_one_unknown_is_left_for_a_minimum():
+    class One:
+        def energy(self, u):
+            return -u[0] ** 2 / 2 + u[0] ** 4 / 4
+
+        def gradient(self, u):
+            return np.array([-u[0] + u[0] ** 3])
+
+        def hessian(self, u):
+            return sp.csr_matrix([[-1 + 3 * u[0] ** 2]])
+
+    r = minimize(One(), np.array([0.0]), stable=True, log=None)
+    assert r.converged and r.stable and abs(abs(r.u[0]) - 1) < 1e-8
+
+
+def test_max_step_caps_the_quasi_newton_steps_too():
+    from femshell.solvers.linear import Refactorizer
+
+    K = sp.csr_matrix(np.diag([2.0, 1.0]))
+    f = np.array([20.0, 10.0])
+
+    class Quadratic:
+        def energy(self, u):
+            return 0.5 * u @ (K @ u) - f @ u
+
+        def gradient(self, u):
+            return K @ u - f
+
+        def hessian(self, u):
+            return K
+
+    pair = (Refactorizer(), Refactorizer())
+    pair[0](K)                                     # a held Cholesky: the quasi-Newton phase runs on it
+    with pytest.raises(NewtonError) as err:
+        minimize(Quadratic(), np.zeros(2), max_step=0.01, factorizers=pair, quasi_newton=5, max_iter=0, log=None)
+    assert np.abs(err.value.result.u).max() <= 5 * 0.01 * (1 + 1e-12)    # five steps of at most 0.01
+
+
+def test_an_error_result_is_attached_when_the_hessian_cannot_be_factorised():
+    class Broken(DoubleWell):
+        def hessian(self, u):
+            return sp.csr_matrix(np.diag([np.nan, 1.0]))
+
+    with pytest.raises(NewtonError, match="could not be factorised") as err:
+        minimize(Broken(), np.array([0.5, 0.3]), log=None)
+    assert err.value.result is not None and np.array_equal(err.value.result.u, [0.5, 0.3])
+
+
+def test_follow_load_cuts_are_bounded_by_the_float_resolution():
+    class Wall:                      # no equilibrium past a load factor of 0.5
+        load_factor = 0.0
+
+        def energy(self, u):
+            return 0.5 * (u[0] - self.load_factor) ** 2 if self.load_factor <= 0.5 else np.nan
+
+        def gradient(self, u):
+            return np.array([u[0] - self.load_factor])
+
+        def hessian(self, u):
+            return sp.csr_matrix([[1.0]])
+
+    with pytest.raises(ValueError, match=r"max_cuts must be an integer in \[0, 50\], got 100"):
+        follow_load(Wall(), np.zeros(1), [1.0], max_cuts=100, log=None)
+    p = Wall()
+    with pytest.raises(NewtonError, match="cannot be cut further") as err:
+        follow_load(p, np.zeros(1), [1.0], max_cuts=50, log=None)
+    assert p.load_factor == 0.5 and err.value.result.u[0] == pytest.approx(0.5)

@@ -820,13 +820,14 @@ class Refactorizer:
         For a caller that needs only that answer, as a search for the shift that makes a
         Hessian positive definite does for each trial: a failed Cholesky is not followed by
         an LDLᵀ (which would cost a second, dearer factorisation to report an inertia that
-        is not used). Without PARDISO (no Cholesky here) the LDLᵀ's inertia answers.
+        is not used). Without PARDISO (no Cholesky here) the LDLᵀ's inertia answers (None when
+        it cannot be counted).
         """
         self._last = None
         try:
             if not self.cholesky_first:
                 f = self._factorize(K)
-                if f.inertia is not None and f.inertia[1] > 0:
+                if f.inertia is None or f.inertia[1] > 0:     # an unknown inertia proves nothing
                     return None
             else:
                 f = self._spd = factorize(K, kind="spd", backend=self.backend, reuse=self._spd)
@@ -890,8 +891,8 @@ def smallest_eigenvalues(K, k: int = 6, M=None, *, shift: float | None = None, r
     """
     K = _canonical_csr(K)
     n = K.shape[0]
-    if not (1 <= k < n):
-        raise ValueError(f"k must be in 1..{n - 1}, got {k}")
+    if not (1 <= k <= n):
+        raise ValueError(f"k must be in 1..{n}, got {k}")
     if M is not None:
         M = sp.diags(np.asarray(M, dtype=float)) if (not sp.issparse(M) and np.ndim(M) == 1) else sp.csr_matrix(M)
         if M.shape != K.shape:

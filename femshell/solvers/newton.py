@@ -117,14 +117,21 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     u = check_unknowns(problem, u0)
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
         raise ValueError(f"max_iter must be an integer >= 0, got {max_iter!r}")
-    if stall not in (None, False) and (not isinstance(stall, (int, np.integer)) or stall < 1):
+    if stall not in (None, False) and (isinstance(stall, bool) or not isinstance(stall, (int, np.integer))
+                                       or stall < 1):
         raise ValueError(f"stall must be an integer >= 1 (or None/False: never), got {stall!r}")
+    if isinstance(quasi_newton, bool) or not isinstance(quasi_newton, (int, np.integer)) or quasi_newton < 0:
+        raise ValueError(f"quasi_newton must be an integer >= 0, got {quasi_newton!r}")
+    if factorizers is not None and not (isinstance(factorizers, (tuple, list)) and len(factorizers) == 2
+                                        and all(isinstance(f, Refactorizer) for f in factorizers)):
+        raise ValueError(f"factorizers must be a pair of Refactorizer (or None), got {factorizers!r}")
     for name, v in (("rtol", rtol), ("atol", atol)) + ((("residual_scale", residual_scale),)
                                                       if residual_scale is not None else ()):
         if not (isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v) and v >= 0):
             raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
-    if max_step is not None and not (max_step > 0):
-        raise ValueError(f"max_step must be > 0 (or None), got {max_step}")
+    if max_step is not None and not (isinstance(max_step, (int, float, np.integer, np.floating))
+                                     and not isinstance(max_step, bool) and max_step > 0):
+        raise ValueError(f"max_step must be a number > 0 (or None), got {max_step!r}")
     times = {"assembly": 0.0, "factorize": 0.0, "solve": 0.0, "line_search": 0.0}
     t0 = time.perf_counter()
     e = problem.energy(u)
@@ -155,7 +162,7 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
             f.restart()
         if quasi_newton and held is not None and held.kind == "spd" and held.n == len(u):
             u, e, g, qn_iterations = lagged_quasi_newton(problem, u, e, g, held, rtol * residual_scale + atol,
-                                                         quasi_newton, times)
+                                                         quasi_newton, times, max_step=max_step)
             if log:
                 log(f"    quasi-Newton on the held factorisation: {qn_iterations} iterations, |r| {np.linalg.norm(g):.3e}")
         out = _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step,
@@ -209,67 +216,91 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
         times["line_search"] += time.perf_counter() - t
         if scale_from_start:    # a start at an exact equilibrium (a saddle) had an imbalance of round-off
             residual_scale = max(residual_scale, float(np.linalg.norm(g)))
+
+    def is_saddle(K, n_neg) -> bool:
+        """K has a negative eigenvalue (counted from the inertia, else from the smallest eigenvalue)."""
+        if n_neg is not None:
+            return n_neg > 0
+        lam, _ = smallest_eigenvalues(K, k=1)
+        return bool(lam[0] < 0)
+
     roundoff_floor = False
+    escaped = False          # the last thing done was a step off a saddle: its residual is not yet tested
     tau = None
-    for it in range(max_iter + 1):
-        res = np.linalg.norm(g)
-        history.append((it, e, res))
-        if log:
-            log(f"    newton {it:3d}  energy {e:.12g}  |r| {res:.3e}")
-        t = time.perf_counter()
-        K = problem.hessian(u)
-        times["assembly"] += time.perf_counter() - t
-        t = time.perf_counter()
-        fac = _factorize(K, hessian_factors)
-        times["factorize"] += time.perf_counter() - t
-        n_neg = fac.inertia[1] if fac.inertia is not None else None
-        floor = _roundoff_residual(K, u)
-        if res <= max(rtol * residual_scale + atol, floor):
-            if not stable or n_neg == 0:
-                break
-            if n_neg is None:
-                lam, vec = smallest_eigenvalues(K, k=1)
-                if lam[0] >= 0:
+    it = 0
+    try:
+        for it in range(max_iter + 1):
+            escaped = False
+            res = np.linalg.norm(g)
+            history.append((it, e, res))
+            if log:
+                log(f"    newton {it:3d}  energy {e:.12g}  |r| {res:.3e}")
+            t = time.perf_counter()
+            K = problem.hessian(u)
+            times["assembly"] += time.perf_counter() - t
+            t = time.perf_counter()
+            fac = _factorize(K, hessian_factors)
+            times["factorize"] += time.perf_counter() - t
+            n_neg = fac.inertia[1] if fac.inertia is not None else None
+            floor = _roundoff_residual(K, u)
+            if res <= max(rtol * residual_scale + atol, floor):
+                if not stable or n_neg == 0:
+                    break
+                if not is_saddle(K, n_neg):       # the inertia unknown: the smallest eigenvalue is >= 0
                     n_neg = 0
                     break
-            leave_saddle(it, res)
-            continue
-        if it == max_iter:
-            break
-        if _stalled(history, stall):
-            raise NewtonError(f"Newton stalled at iteration {it}: |r| = {res:.3e} did not halve and the energy "
-                              f"fell by less than 1e-7 of it over the last {stall} iterations", _result(
-                                  u, False, it, e, res, residual_scale, n_neg, history, times), stalled=True)
-        t = time.perf_counter()
-        d = -fac.solve(g)
-        times["solve"] += time.perf_counter() - t
-        ok = False
-        # with negative curvature the plain Newton step is still taken when it lowers the
-        # energy (a compressed flat sheet relaxes in plane this way); otherwise shift
-        if not n_neg or g @ d < -1e-8 * np.linalg.norm(g) * np.linalg.norm(d):
-            u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
-        if not ok and n_neg:
-            # start near the last shift that worked: saves most of the trial factorisations
-            shifted, tau = _shift_to_positive(K, shifted_factors, times, max(1e-8, tau / 16) if tau else 1e-6)
-            if log:
-                log(f"    newton: Hessian has {n_neg} negative eigenvalues; shifted by {tau:.2e}")
-            d = -shifted.solve(g)
-            u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
-        if not ok:
-            # no step lowers Π when the predicted decrease is below what float64 can resolve
-            # in Π: the residual has reached its round-off floor, which is as converged as it gets
-            if abs(g @ d) <= 1e-13 * max(abs(e), abs(e_start), 1e-300):
-                if stable and n_neg:
-                    # a saddle at the round-off floor (an equilibrium by symmetry, as a flat plate
-                    # grown past buckling): leave it as a converged saddle is left
-                    leave_saddle(it, res)
-                    continue
-                roundoff_floor = True
-                if log:
-                    log(f"    newton: stopped at the round-off floor, |r| = {res:.3e}")
+                leave_saddle(it, res)
+                escaped = True
+                continue
+            if it == max_iter:
                 break
-            raise NewtonError(f"line search failed at iteration {it} (|r| = {res:.3e})", _result(
-                u, False, it, e, res, residual_scale, n_neg, history, times))
+            if _stalled(history, stall):
+                raise NewtonError(f"Newton stalled at iteration {it}: |r| = {res:.3e} did not halve and the energy "
+                                  f"fell by less than 1e-7 of it over the last {stall} iterations", _result(
+                                      u, False, it, e, res, residual_scale, n_neg, history, times), stalled=True)
+            t = time.perf_counter()
+            d = -fac.solve(g)
+            times["solve"] += time.perf_counter() - t
+            ok = False
+            # with negative curvature the plain Newton step is still taken when it lowers the
+            # energy (a compressed flat sheet relaxes in plane this way); otherwise shift
+            if not n_neg or g @ d < -1e-8 * np.linalg.norm(g) * np.linalg.norm(d):
+                u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
+            if not ok and n_neg:
+                # start near the last shift that worked: saves most of the trial factorisations
+                shifted, tau = _shift_to_positive(K, shifted_factors, times, max(1e-8, tau / 16) if tau else 1e-6)
+                if log:
+                    log(f"    newton: Hessian has {n_neg} negative eigenvalues; shifted by {tau:.2e}")
+                d = -shifted.solve(g)
+                u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
+            if not ok:
+                # no step lowers Π when the predicted decrease is below what float64 can resolve
+                # in Π: the residual has reached its round-off floor, which is as converged as it gets
+                if abs(g @ d) <= 1e-13 * max(abs(e), abs(e_start), 1e-300):
+                    if stable and is_saddle(K, n_neg):
+                        # a saddle at the round-off floor (an equilibrium by symmetry, as a flat plate
+                        # grown past buckling): leave it as a converged saddle is left
+                        leave_saddle(it, res)
+                        escaped = True
+                        continue
+                    if stable and n_neg is None:
+                        n_neg = 0                 # the smallest eigenvalue is >= 0
+                    roundoff_floor = True
+                    if log:
+                        log(f"    newton: stopped at the round-off floor, |r| = {res:.3e}")
+                    break
+                raise NewtonError(f"line search failed at iteration {it} (|r| = {res:.3e})", _result(
+                    u, False, it, e, res, residual_scale, n_neg, history, times))
+    except NewtonError as exc:
+        if exc.result is None:         # the factorisation, the shift or the escape failed: still say where
+            exc.result = _result(u, False, it, e, float(np.linalg.norm(g)), residual_scale, n_neg, history, times)
+        raise
+    if escaped:
+        # the last iteration stepped off a saddle: the new point is no equilibrium yet
+        res = float(np.linalg.norm(g))
+        out = _result(u, False, it, e, res, residual_scale, None, history, times)
+        raise NewtonError(f"Newton left a saddle on its last iteration (max_iter = {max_iter}): |r| = {res:.3e} "
+                          "at the new point; allow more iterations", out)
     converged = roundoff_floor or res <= max(rtol * residual_scale + atol, floor)
     out = _result(u, converged, it, e, res, residual_scale, n_neg, history, times)
     if not converged:
@@ -278,7 +309,7 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
     return out
 
 
-def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, memory=8, stall=4):
+def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, memory=8, stall=4, max_step=None):
     r"""L-BFGS from an earlier Hessian's factorisation: minimise Π without assembling a Hessian.
 
     The inverse-Hessian approximation starts from :math:`H_0 = K_0^{-1}`, the held
@@ -294,8 +325,9 @@ def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, m
 
     Stops when :math:`|\nabla\Pi| \le` ``tol``, after ``max_iter`` iterations, when the
     line search fails, or when ``stall`` iterations in a row did not halve the residual (a
-    Hessian that has moved too far: Newton is cheaper from there). Returns (u, Π, ∇Π,
-    iterations); the state returned has an energy no higher than the start.
+    Hessian that has moved too far: Newton is cheaper from there). Steps are capped to a
+    max-norm of ``max_step`` as Newton's are. Returns (u, Π, ∇Π, iterations); the state
+    returned has an energy no higher than the start (to the line search's round-off band).
     """
     t0 = time.perf_counter()
     pairs = []
@@ -312,7 +344,7 @@ def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, m
         r = factorization.solve(q)
         for (s, y, rho), a in zip(pairs, reversed(alphas)):
             r += s * (a - rho * (y @ r))
-        un, en, gn, ok = _line_search(problem, u, e, g, -r)
+        un, en, gn, ok = _line_search(problem, u, e, g, -r, max_step=max_step)
         if not ok:
             break
         it += 1
@@ -354,12 +386,8 @@ def _factorize(K, factorizer):
 
 
 def _step(problem, u, e, g, d, max_step, times):
-    if max_step is not None:
-        big = np.abs(d).max()
-        if big > max_step:
-            d = d * (max_step / big)
     t = time.perf_counter()
-    out = _line_search(problem, u, e, g, d)
+    out = _line_search(problem, u, e, g, d, max_step=max_step)
     times["line_search"] += time.perf_counter() - t
     return out
 
@@ -387,12 +415,21 @@ def _shift_to_positive(K, factorizer, times, tau_start=1e-6):
     raise NewtonError("could not shift the Hessian to positive definite")
 
 
-def _line_search(problem, u, e, g, d, c1=1e-4, max_halvings=30):
-    """Backtracking Armijo search on the energy; near convergence, on the residual norm."""
+def _line_search(problem, u, e, g, d, c1=1e-4, max_halvings=30, max_step=None):
+    """Backtracking Armijo search on the energy; near convergence, on the residual norm.
+
+    The direction is scaled to a max-norm of ``max_step``. A step is taken when the energy
+    falls (Armijo), or, where energy differences are below round-off (1e-12 |Π|), when the
+    residual falls: so the energy may rise by that round-off band, no more.
+    """
     slope = g @ d
     if slope >= 0:  # not a descent direction (should not happen with a positive definite system)
         d = -g
-        slope = -(g @ g)
+    if max_step is not None:
+        big = np.abs(d).max()
+        if big > max_step:
+            d = d * (max_step / big)
+    slope = g @ d
     r0 = np.linalg.norm(g)
     alpha = 1.0
     for _ in range(max_halvings):
@@ -450,7 +487,18 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
     factors = [float(f) for f in factors]
     if not all(np.isfinite(factors + [current])):
         raise ValueError(f"load factors and start must be finite, got start {start} and factors {factors}")
+    # 2**-50 of an interval is about float resolution: more cuts would only repeat the same factor
+    if isinstance(max_cuts, bool) or not isinstance(max_cuts, (int, np.integer)) or not 0 <= max_cuts <= 50:
+        raise ValueError(f"max_cuts must be an integer in [0, 50], got {max_cuts!r}")
     last = None  # the last converged NewtonResult, handed back with a failure
+
+    def last_converged():
+        """The last converged result; before any, u0 described as it is."""
+        if last is not None:
+            return last
+        g = problem.gradient(u)
+        return _result(u, False, 0, problem.energy(u), float(np.linalg.norm(g)), 1.0, None, [], {})
+
     previous = None  # (load factor, state) of the converged step before, for the secant predictor
     out = []
     for target in factors:
@@ -459,6 +507,10 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
         step = interval
         while True:
             trial = current + step
+            if step != 0 and trial == current:
+                problem.load_factor = current
+                raise NewtonError(f"load step from {current:.17g} towards {target:.6g} is below the float resolution "
+                                  f"there (step {step:.3g}): it cannot be cut further", last_converged())
             problem.load_factor = trial
             start = u
             if previous is not None and previous[0] != current:
@@ -469,15 +521,15 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
                     start = u
             try:
                 res = minimize(problem, start, log=None, **newton_options)
-            except NewtonError as exc:
+            except BaseException as exc:
+                if not isinstance(exc, NewtonError):
+                    problem.load_factor = current     # an error of another kind: leave the last converged factor
+                    raise
                 if abs(step) * 0.5 <= min_step:    # (<=: a step of 0, to a factor equal to the start, ends too)
                     problem.load_factor = current
-                    if last is None:  # nothing converged yet: describe u0 as it is
-                        g = problem.gradient(u)
-                        last = _result(u, False, 0, problem.energy(u), float(np.linalg.norm(g)), 1.0, None, [], {})
                     raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed, and the step cannot be "
                                       f"cut further (max_cuts = {max_cuts}: not below 2**-{max_cuts} of the interval "
-                                      f"to {target:.6g}; last converged load factor {current:.6g}): {exc}", last)
+                                      f"to {target:.6g}; last converged load factor {current:.6g}): {exc}", last_converged())
                 step *= 0.5
                 if log:
                     log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
