@@ -7,8 +7,8 @@ One step of length dt, from an accepted state (t, c, u) where u is a stable equi
 of the shell grown by s(c):
 
 1. chemistry on the CURRENT surface x(u): c⁺ = step(c, dt, P(H(u))) with
-   :class:`~femshell.chemistry.ReactionDiffusion` (implicit Euler in D Δ_Γ − β for
-   D > 0; the exact exponential update node by node for D = 0, no stiffness built);
+   :class:`~femshell.chemistry.ReactionDiffusion` (degradation integrated exactly, diffusion
+   implicitly; for D = 0 the exact update node by node, no stiffness built);
 2. step control: Δs = max over elements |s(c⁺) − s(c)|; if Δs > ``ds_max`` the step
    is cut and redone (the mechanics has not been touched yet, so this is cheap);
 3. growth: ā = s² ā0, b̄ = s² b̄0, h̄ = h0/s² (or h0) with s = s(c⁺) per element
@@ -27,13 +27,12 @@ of the shell grown by s(c):
 **Why the staggering limits dt.** The chemistry step holds the source P(H(u)) of the
 start of the step; the shape that c⁺ makes changes P. Linearised about a fixed point
 c = P/β, with G = ∂P/∂c through the mechanics, a perturbation δ is multiplied per step by
-a = 1 − q (1 − γ), q = 1 − e^{−β dt}, γ = g/β (D = 0: the exponential update), or by
-a = (1 + g dt)/(1 + β dt) (implicit Euler; diffusion only damps more), for an eigenvalue g of G.
+a = 1 − q (1 − g/β), q = 1 − e^{−β dt} (diffusion only damps more), for an eigenvalue g of G.
 A bulge flattens itself as it grows (g < 0, the negative feedback that makes a spot
 stationary), and where the growth law is steep g is large: in the ``spots`` scenario
 the unlimited step oscillates about the fixed point for ever (max|Δc| / (dt c) ≈
 1e-2 … 1e-1 at dt ≈ 0.2 … 1, R = 15, 2 700 vertices) and becomes stationary with dt ≤ 0.1
-(measured: γ ≈ −20 needs β dt < 0.1). After each step the loop estimates the gain
+(measured: g/β ≈ −20 needs β dt < 0.1). After each step the loop estimates the gain
 from the change it just made, g ≈ min ΔP_i/Δc_i over the vertices that changed most (the
 step's change of the source against its change of c, the way explicit ODE solvers
 detect stiffness; :func:`feedback_gain`), and bounds the next dt so that
@@ -438,9 +437,10 @@ def feedback_step_limit(g: float, beta: float, rho: float, exponential: bool) ->
     With the source held over the step, a mode δ of the chemistry c = P(c)/β with
     ∂P/∂c δ = g δ is multiplied per step by
 
-    * ``exponential`` (D = 0, the exact update): a = 1 − q (1 − g/β), q = 1 − e^{−β dt};
-      a ≥ −ρ ⇔ q ≤ (1 + ρ) β / (β − g);
-    * implicit Euler (D > 0, diffusion left out, which only damps): a = (1 + g dt)/(1 + β dt);
+    * ``exponential`` (the degradation integrated exactly, as femshell's chemistry does; with
+      D > 0 the diffusion, left out here, only damps more): a = 1 − q (1 − g/β),
+      q = 1 − e^{−β dt}; a ≥ −ρ ⇔ q ≤ (1 + ρ) β / (β − g);
+    * implicit Euler in the degradation too: a = (1 + g dt)/(1 + β dt);
       a ≥ −ρ ⇔ dt (−g − ρ β) ≤ 1 + ρ.
 
     Only a negative feedback, g < −ρ β, limits dt; a positive one (a switch turning on)
@@ -1092,7 +1092,7 @@ class CoupledLoop:
         self._last_gain = feedback_gain(self.c - c_old, p.source(self.H_vertex) - source_old)
         if st.feedback_amplification > 0:
             nxt = min(nxt, feedback_step_limit(self._last_gain, p.beta, st.feedback_amplification,
-                                               exponential=p.D == 0))
+                                               exponential=True))
         return float(min(st.dt_max, max(st.dt_min, nxt)))
 
     def record(self, dt: float = 0.0, cuts: int = 0, wall_s: float = 0.0, snapped: bool = False) -> StepRecord:

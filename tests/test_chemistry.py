@@ -116,19 +116,21 @@ def test_exponential_update_is_exact_without_diffusion(unit_sphere):
     assert rd0.stiffness is None and rd0.assembler.n_assembled == 0
 
 
-def test_implicit_euler_step_matches_the_linear_system(unit_sphere):
+def test_diffusion_step_matches_its_linear_system(unit_sphere):
+    """(M + γ D K) c⁺ = M (c e^{−β dt} + γ P), γ = (1 − e^{−β dt})/β: degradation exact, diffusion implicit."""
     pts, tri = unit_sphere
     n = len(pts)
     rng = np.random.default_rng(3)
     c = rng.uniform(0, 1, n)
     P = rng.uniform(0, 0.5, n)
     D, beta, dt = 0.7, 1.0, 0.2
+    decay, gamma = np.exp(-beta * dt), (1 - np.exp(-beta * dt)) / beta
     rd = ReactionDiffusion(tri, n, D=D, beta=beta, points=pts)
     c1 = rd.step(c, dt, P)
     K = surface_stiffness(pts, tri)
     m = surface_mass_lumped(pts, tri)
-    A = sp.diags(m * (1 + beta * dt)) + dt * D * K
-    np.testing.assert_allclose(c1, spla.spsolve(A.tocsc(), m * (c + dt * P)), rtol=1e-10)
+    A = sp.diags(m) + gamma * D * K
+    np.testing.assert_allclose(c1, spla.spsolve(A.tocsc(), m * (c * decay + gamma * P)), rtol=1e-10)
     # the factorisation is reused while dt and the geometry stay the same ...
     rd.step(c1, dt, P)
     assert rd._factor.n_factorizations == 1
@@ -138,10 +140,30 @@ def test_implicit_euler_step_matches_the_linear_system(unit_sphere):
     assert rd._factor.n_factorizations == 2 and rd._factor.n_analyses == 1
     K = surface_stiffness(moved, tri)
     m = surface_mass_lumped(moved, tri)
-    A = sp.diags(m * (1 + beta * dt)) + dt * D * K
-    np.testing.assert_allclose(c3, spla.spsolve(A.tocsc(), m * (c1 + dt * P)), rtol=1e-10)
-    # total mass balance of one step: Σ m c⁺ (1 + β dt) = Σ m (c + dt P)  (K 1 = 0)
-    assert (m * c3).sum() * (1 + beta * dt) == pytest.approx((m * (c1 + dt * P)).sum(), rel=1e-10)
+    A = sp.diags(m) + gamma * D * K
+    np.testing.assert_allclose(c3, spla.spsolve(A.tocsc(), m * (c1 * decay + gamma * P)), rtol=1e-10)
+    # total amount after one step: Σ m c⁺ = Σ m (c e^{−β dt} + γ P), exactly the ODE of the total (K 1 = 0)
+    assert (m * c3).sum() == pytest.approx((m * (c1 * decay + gamma * P)).sum(), rel=1e-10)
+
+
+def test_the_diffusion_step_is_exact_in_the_reaction_and_continuous_as_d_goes_to_zero(unit_sphere):
+    """A uniform c under a uniform source is a solution of the ODE c' = P − βc for any D (K 1 = 0):
+    the step reproduces its closed form for any dt; D → 0 gives the D = 0 update."""
+    pts, tri = unit_sphere
+    n = len(pts)
+    exact = 0.5 * (1 - np.exp(-3.0))                       # c(3) from c = 0 under P = 0.5, β = 1
+    for D in (0.0, 1e-12, 0.5):
+        rd = ReactionDiffusion(tri, n, D=D, beta=1.0, points=pts)
+        c = np.zeros(n)
+        for _ in range(3):
+            c = rd.step(c, 1.0, np.full(n, 0.5))
+        np.testing.assert_allclose(c, exact, rtol=1e-12)   # implicit Euler: 0.4375 against 0.4751
+    rng = np.random.default_rng(5)
+    c0, P = rng.uniform(0, 1, n), rng.uniform(0, 0.5, n)
+    # D = 1e-15 moves c by D γ |M⁻¹K c| ~ 1e-13 here: no jump at D = 0
+    near = ReactionDiffusion(tri, n, D=1e-15, beta=1.0, points=pts).step(c0, 0.7, P)
+    zero = ReactionDiffusion(tri, n, D=0.0, beta=1.0).step(c0, 0.7, P)
+    np.testing.assert_allclose(near, zero, rtol=0, atol=1e-11)
 
 
 def test_concentration_stays_nonnegative_for_huge_steps(unit_sphere):

@@ -512,8 +512,8 @@ def test_design_literal_rest_curvature_k0(ball):
 # ----------------------------------------------------------------------------- stability of the staggering
 
 def _staggered(G, P0, c, dt, exponential):
-    """One step of the loop's chemistry with the source P0 + G c held at its start (β = 1, D = 0 or
-    implicit Euler without diffusion)."""
+    """One step of a chemistry with the source P0 + G c held at its start (β = 1, no diffusion): the
+    exact update of femshell's stepper, or implicit Euler (feedback_step_limit covers both)."""
     P = P0 + G @ c
     if exponential:
         return P + (c - P) * np.exp(-dt)

@@ -77,8 +77,7 @@ def sphere_mesh():
 @pytest.mark.parametrize("w", [15.0, 1e3])
 def test_reaction_diffusion_with_huge_production_diffusion_and_steps(strict_floats, sphere_mesh, D, dt, w):
     """Pass: after 20 steps c is finite, c ≥ 0 (without clipping on this Delaunay mesh), and
-    max c ≤ max(max c0, max P/β) (the discrete maximum principle of implicit Euler / the exact
-    exponential update)."""
+    max c ≤ max(max c0, max P/β) (the discrete maximum principle of the chemistry step)."""
     pts, tri = sphere_mesh
     rng = np.random.default_rng(0)
     H = rng.uniform(-1.0, 10.0, len(pts))                # curvatures up to 200 Hs: P saturates at w Hs

@@ -492,7 +492,7 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
         if ch["D"] > 0:
             flags["diffusion_operator"] = True
             operators.append("P1 Laplace-Beltrami stiffness + lumped mass on the deformed surface (D > 0)")
-            chem = f"D={ch['D']:g}: implicit Euler with the P1 Laplace-Beltrami operator"
+            chem = f"D={ch['D']:g}: P1 Laplace-Beltrami operator, diffusion implicit, degradation exact"
         else:
             chem = "D=0: exact exponential update per vertex (no diffusion operator built)"
         lines.append(f"  chemistry  {chem}; w={ch['w']:g} Hs={ch['Hs']:g} beta={ch['beta']:g} "

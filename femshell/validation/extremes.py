@@ -38,7 +38,7 @@ NAME = "extremes"
 DESCRIPTION = ("extreme inputs: growth to s = 2 of the seed paper's disk (and a frustrated cap), steep sigmoid "
                "b <= 1000, production w <= 1e3, D <= 1e2, dt <= 100: converged, stable, finite, c >= 0")
 SOURCE = ("pass criteria from the mathematics: stability from the Hessian inertia; Lambda in [Lmin, Lmax] and "
-          "monotone; discrete maximum principle of implicit Euler on Delaunay meshes (0 <= c <= max(c0, P/beta))")
+          "monotone; discrete maximum principle of the chemistry step on Delaunay meshes (0 <= c <= max(c0, P/beta))")
 
 LEVELS = {
     "quick": {"disk_edge": 2.0, "disk_steps": 10, "cap": False},

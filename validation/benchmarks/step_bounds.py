@@ -52,7 +52,7 @@ def main(argv=None):
         if loop.done:
             break
         rec = loop.advance()
-        fb = feedback_step_limit(rec.feedback_gain, p.beta, st.feedback_amplification, exponential=p.D == 0)
+        fb = feedback_step_limit(rec.feedback_gain, p.beta, st.feedback_amplification, exponential=True)
         # the loop's own rule (femshell.coupled, "next step"): never below 0.1 dt, no growth after a cut
         factor = max(min(st.grow, st.safety * st.ds_max / rec.ds) if rec.ds > 0 else st.grow, 0.1)
         ds = rec.dt * (min(factor, 1.0) if rec.cuts else factor)
