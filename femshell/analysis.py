@@ -32,6 +32,11 @@ for disks of radius 1.5–5, 1.99 and 3.88 for ellipses of axis ratio 2 and 4, w
 of 4L/(πw) for bands bent through 90° and 240°. Each component also reports the aspect
 ratio √(λ1/λ2) of its second moment in its mean tangent plane and its isoperimetric ratio
 P²/(4π A) (1 for a disk), which describe it but do not classify it.
+Two limits of r_in: it is measured in straight lines in space, so on a surface folded
+back on itself another fold's level line can be nearer than the component's own; and a
+mesh's free boundary does not count as boundary, so a region cut by it (a half-disk at
+the edge of a plate) measures as the whole it is cut from would (r_in 0.59 and e 0.5 for a
+half-disk of radius 0.6, measured; 2 expected). Every chemistry scene is a closed sphere.
 
 Example
 -------
