@@ -1021,8 +1021,8 @@ class CoupledLoop:
             raise
 
         # accept: all at once (a Ctrl-C here would leave half a step: c new, rest state old)
-        before = self.state_dict()
         with committing():
+            before = self.state_dict()
             try:
                 return self._accept(c_new, s_new, res, h, last, ds, cuts, snapped, points, source, wall0)
             except BaseException:
@@ -1183,14 +1183,16 @@ class CoupledLoop:
             self.growth.apply(self.s)
             status, message = "interrupted", f"interrupted at t = {self.t:.6g} after {k} step(s) of this run"
             self._say(f"coupled loop {message}")
-        except BaseException:
+        except BaseException as exc:
             # not a failed step but an error (a callback's, a solver's): raised, after the
             # accepted steps are checkpointed (unless the checkpoint is what failed)
             if checkpoint is not None and dirty:
                 try:
                     checkpoint(self.state_dict(), last)
-                except Exception:
-                    pass
+                except Exception as ck:
+                    self._say(f"coupled loop: the checkpoint after the error failed too: {ck}")
+                    if hasattr(exc, "add_note"):                # Python >= 3.11
+                        exc.add_note(f"the checkpoint of the last {k} step(s) was not written: {ck}")
             raise
         if checkpoint is not None and dirty:
             checkpoint(self.state_dict(), last if last is not None else self.record())

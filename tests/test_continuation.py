@@ -346,6 +346,8 @@ def test_a_detected_point_whose_location_fails_is_reported_not_dropped():
     assert p.bracket[0] < 1.0 and p.bracket[1] > 0.99 and p.n_negative_before == 0 and p.n_negative_after == 1
     assert any("not located" in line for line in said) and "not located" in p.summary()
     assert [r["special"] for r in b.rows].count("LP") == 1
+    assert len({r["s"] for r in b.rows}) == len(b.rows)              # the step's end is one row, labelled
+    assert b.rows[-1]["special"] == "LP" and b.rows[-1]["parameter"] == p.parameter
 
 
 def test_a_missed_landing_on_lam_stop_stops_there_and_says_so():

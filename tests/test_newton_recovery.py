@@ -463,5 +463,14 @@ def test_follow_load_cuts_are_bounded_by_the_float_resolution():
         follow_load(Wall(), np.zeros(1), [1.0], max_cuts=100, log=None)
     p = Wall()
     with pytest.raises(NewtonError, match="cannot be cut further") as err:
-        follow_load(p, np.zeros(1), [1.0], max_cuts=50, log=None)
+        follow_load(p, np.zeros(1), [1.0], max_cuts=50.0, log=None)
     assert p.load_factor == 0.5 and err.value.result.u[0] == pytest.approx(0.5)
+
+    class FarWall(Wall):             # the same wall at a load factor of 1e6 + 0.5: the float spacing
+        def energy(self, u):         # there (1.2e-10) is far above 2**-50 of the interval
+            return 0.5 * (u[0] - self.load_factor) ** 2 if self.load_factor <= 1e6 + 0.5 else np.nan
+
+    p = FarWall()
+    with pytest.raises(NewtonError, match="below the float resolution") as err:
+        follow_load(p, np.array([1e6]), [1e6 + 1.0], start=1e6, max_cuts=50, log=None)
+    assert p.load_factor == 1e6 + 0.5 and err.value.result.u[0] == pytest.approx(1e6 + 0.5)

@@ -309,7 +309,8 @@ class Branch:
     """A followed branch: table rows, states, special points, and why it stopped.
 
     ``rows``: list of dicts, one per accepted point and per located special point, in
-    arclength order, with ``step, s, parameter, energy, n_negative, stable, eig_0..
+    arclength order (a point detected but not located labels the row of the step's end),
+    with ``step, s, parameter, energy, n_negative, stable, eig_0..
     (eigenvalues nearest zero, ascending),
     dlam_ds, ds, iterations, special ("", "LP", "BP", "BP?"), branch, wall_s`` and the
     columns of ``record(u)``. ``states``: the matching ``(u, lam)`` (None entries when
@@ -443,6 +444,10 @@ class _StepFailure(Exception):
     pass
 
 
+class _SingularTangent(_StepFailure):
+    """The bordered system of the tangent is singular (at a fold or branch point)."""
+
+
 @dataclass
 class _Point:
     u: np.ndarray
@@ -458,7 +463,9 @@ class _Point:
     eig_offset: int | None = None            # eigenvalues[i] is the (eig_offset + i)-th smallest
     energy: float = math.nan
     tangent_failed: bool = False
-    predictor_residual: float = 0.0          # joins the branch's residual scale when the point is accepted
+    # both join the branch's residual scale when the point is accepted (not for trial or location points)
+    predictor_residual: float = 0.0
+    parameter_residual: float = 0.0          # |∂r/∂λ| · parameter_scale
 
 
 class _Engine:
@@ -602,11 +609,11 @@ class _Engine:
                 warnings.simplefilter("ignore")
                 x = spla.splu(A).solve(b)
         except RuntimeError as exc:
-            raise _StepFailure(f"the bordered system is singular ({exc})") from None
+            raise _SingularTangent(f"the bordered system is singular ({exc})") from None
         res = A @ x - b
         if not np.all(np.isfinite(x)) or np.linalg.norm(res) > 1e-6 * max(np.linalg.norm(b), np.linalg.norm(A @ x),
                                                                           1e-300):
-            raise _StepFailure("the bordered system is numerically singular")
+            raise _SingularTangent("the bordered system is numerically singular")
         return x[:n], float(x[n])
 
     def eigs(self, K, k, vectors=False, fac=None):
@@ -729,7 +736,7 @@ class _Engine:
             z, tau = self.solve_bordered(P.K, fac, gl, c, d, None, 1.0)
             nt = self.norm(z, tau)
             if not (np.isfinite(nt) and nt > 0):
-                raise _StepFailure("zero tangent")
+                raise _SingularTangent("zero tangent")
             P.t_u, P.t_lam = z / nt, tau / nt
         except _StepFailure:
             if ref is None:
@@ -738,7 +745,7 @@ class _Engine:
             # keep the reference tangent
             P.t_u, P.t_lam = ref[0].copy(), float(ref[1])
             P.tangent_failed = True
-        self.rscale = max(self.rscale, float(np.linalg.norm(gl)) * self.lam_scale)
+        P.parameter_residual = float(np.linalg.norm(gl)) * self.lam_scale
         k = self.n_eigs if n_eigs is None else n_eigs
         if k > 0:
             P.eigenvalues, P.eigenvectors, P.eig_offset = self.eigs(P.K, k, vectors=vectors, fac=fac)
@@ -851,7 +858,6 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     cos_max = math.cos(math.radians(max_turn_deg))
 
     # ---- the first point
-    failed = "did not converge"
     try:
         if initial_tangent is None:
             # Newton at fixed λ finds the equilibrium next to u0 whatever its stability; only
@@ -865,9 +871,11 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
                 except NewtonError as exc:
                     raise _StepFailure(f"Newton and minimisation failed ({exc})") from None
                 A = eng.correct(u_start, lam0, lam_fixed=lam0, update_scale=False)
-            failed = ("is an equilibrium without a tangent there: a singular point (fold or branch point); start "
-                      "beside it or give initial_tangent")
-            A = eng.finish(A, None, direction)
+            try:
+                A = eng.finish(A, None, direction)
+            except _SingularTangent as exc:
+                raise _StepFailure(f"is an equilibrium without a tangent there: a singular point (fold or branch "
+                                   f"point); start beside it or give initial_tangent ({exc})") from None
         else:
             t0u = np.asarray(initial_tangent[0], float)
             t0l = float(initial_tangent[1])
@@ -880,11 +888,13 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
             A = eng.finish(A, t0)
     except _StepFailure as exc:
         eng.release()
-        raise ContinuationError(f"the first point at parameter {lam0:.6g} {failed} ({exc})") from None
+        what = str(exc) if str(exc).startswith("is an equilibrium") else f"did not converge ({exc})"
+        raise ContinuationError(f"the first point at parameter {lam0:.6g} {what}") from None
     except BaseException:
         eng.release()
         raise
     branch._last = (A.u, A.lam)
+    eng.rscale = max(eng.rscale, A.parameter_residual)
 
     if lam_stop is not None:
         if abs(lam_stop - A.lam) <= 1e-12 * max(abs(lam_stop), parameter_scale):
@@ -947,7 +957,8 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
                 found = ctx.detect(A, B, s, sigma_B, step - 1, history)
             eng.set(B.lam)     # the location's trial points moved the problem's parameter
             s += sigma_B
-            ctx.add_row(B, s, step, ds=sigma_B)
+            ctx.add_row(B, s, step, ds=sigma_B,
+                        special=next((p.label for p in found if p.info.get("at_step_end")), ""))
             if hasattr(problem, "accept"):
                 problem.accept(B.u)
             if log:
@@ -958,7 +969,7 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
             A = B
             branch._last = (A.u, A.lam)
             # only accepted steps: a diverged trial's residual must not loosen the later tests
-            eng.rscale = max(eng.rscale, B.predictor_residual)
+            eng.rscale = max(eng.rscale, B.predictor_residual, B.parameter_residual)
             if callback is not None and bool(callback(branch, branch.rows[-1])):   # np.True_ and 1 stop too
                 stop = ("callback", "the callback asked to stop")
                 break
@@ -1019,6 +1030,7 @@ class _Context:
         self.keep_states, self.n_eigs = keep_states, n_eigs
         self.locate_tol, self.cluster_tol, self.dip_tol = locate_tol, cluster_tol, dip_tol
         self.log, self.t0 = log, t0
+        self._step_end = None       # the end of the step being searched (an unlocated point is reported there)
 
     # ---- rows
     def add_row(self, P, s, step, ds, special=""):
@@ -1083,6 +1095,8 @@ class _Context:
         found = []
         cache = {0.0: A, float(sigma_B): B}
         kind = None
+        n0 = len(self.branch.special_points)
+        self._step_end = B
         try:
             fold = np.isfinite(A.t_lam) and np.isfinite(B.t_lam) and A.t_lam * B.t_lam < 0
             if fold:
@@ -1095,11 +1109,14 @@ class _Context:
             if not found and self.n_eigs > 0 and len(history) >= 2:
                 found += self._detect_dip(history + [(B, s_A + sigma_B)], step, cache, A, s_A)
         except _StepFailure as exc:
+            found = list(self.branch.special_points[n0:])      # those located before the failure
             if kind is None:        # a possible (dip) point: nothing was crossed
                 if self.log:
                     self.log(f"    location of a possible branch point failed: {exc}")
-            elif not any(p.kind == kind for p in found):
-                found.append(self._unlocated(kind, A, B, s_A, sigma_B, step, f"its location failed: {exc}"))
+            else:
+                # a located fold means what failed was a crossing beside it
+                failed = "branch" if kind == "fold" and any(p.kind == "fold" for p in found) else kind
+                found.append(self._unlocated(failed, A, B, s_A, sigma_B, step, f"its location failed: {exc}"))
         return found
 
     def _unlocated(self, kind, A, B, s_A, sigma_B, step, reason, crossings=None, n_before=None):
@@ -1119,7 +1136,10 @@ class _Context:
                          n_negative_after=n_after, step=step, bracket=tuple(sorted((A.lam, B.lam))), located=False,
                          info=info, weights=self.eng.w, parameter_scale=self.eng.lam_scale)
         self.branch.special_points.append(p)
-        self.add_row(B, s_A + sigma_B, step, ds=sigma_B, special=p.label)
+        if B is self._step_end:
+            p.info["at_step_end"] = True        # the step's own row carries the label
+        else:
+            self.add_row(B, s_A + sigma_B, step, ds=sigma_B, special=p.label)
         if self.log:
             self.log(f"    {p.label} detected between parameters {A.lam:.8g} and {B.lam:.8g} but not located "
                      f"({reason}); reported at {B.lam:.8g}")

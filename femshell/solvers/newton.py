@@ -488,8 +488,11 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
     if not all(np.isfinite(factors + [current])):
         raise ValueError(f"load factors and start must be finite, got start {start} and factors {factors}")
     # 2**-50 of an interval is about float resolution: more cuts would only repeat the same factor
-    if isinstance(max_cuts, bool) or not isinstance(max_cuts, (int, np.integer)) or not 0 <= max_cuts <= 50:
+    whole = (not isinstance(max_cuts, bool) and isinstance(max_cuts, (int, float, np.integer, np.floating))
+             and math.isfinite(max_cuts) and max_cuts == int(max_cuts))
+    if not (whole and 0 <= max_cuts <= 50):
         raise ValueError(f"max_cuts must be an integer in [0, 50], got {max_cuts!r}")
+    max_cuts = int(max_cuts)
     last = None  # the last converged NewtonResult, handed back with a failure
 
     def last_converged():

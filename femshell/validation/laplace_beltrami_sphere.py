@@ -11,9 +11,10 @@ Three checks of femshell.chemistry (P1 cotangent stiffness K, lumped mass M):
    0.1 λ h² (h the mean edge length; measured errors are 0.04–0.06 λ h²).
 2. Decay in space. c0 = Y_l (real spherical harmonics, l = 2: 3z² − 1; l = 4:
    x⁴ − 6x²y² + y⁴) under ∂t c = D Δ c − β c decays as e^{−λ t}, λ = D l(l+1) + β.
-   Implicit Euler with step dt multiplies a mode by (1 + λ dt)^{−1} per step, so
-   after N = t/dt steps the discrete-in-time exact answer is (1 + λ dt)^{−N}:
-   comparing with that isolates the spatial error. The amplitude is
+   The stepper (degradation exact, diffusion implicit) multiplies a mode by
+   e^{−β dt} / (1 + γ D l(l+1)) per step, γ = (1 − e^{−β dt})/β, so after N = t/dt steps
+   the discrete-in-time exact answer is that factor to the N: comparing with it
+   isolates the spatial error. The amplitude is
    a(t) = c(t)ᵀ M c0 / c0ᵀ M c0.
 3. Decay in time. On one mesh, dt halved from 0.2: a(1) against e^{−λ}; the
    observed order in dt (from successive differences, which cancel the

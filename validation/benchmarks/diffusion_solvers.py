@@ -4,8 +4,9 @@ The system of one chemical step is
 
     A c⁺ = b,   A = M (1 + β dt) + dt D K
 
-(measured so; femshell now solves A = M + γ D K, γ = (1 − e^{−β dt})/β ≤ dt, which has the
-same pattern and spectrum shape: the figures carry over with dt D replaced by γ D) with M the lumped P1 mass and K the P1 cotangent stiffness of the (deformed) surface;
+with M the lumped P1 mass and K the P1 cotangent stiffness of the (deformed) surface
+(measured so; femshell now solves A = M + γ D K, γ = (1 − e^{−β dt})/β ≤ dt: the same
+pattern and kind of spectrum, so the figures carry over with dt D replaced by γ D).
 A is SPD, one unknown per vertex, ~7 non-zeros per row. The surface moves between
 steps, so every step pays setup (factorisation / AMG hierarchy) + one solve.
 
