@@ -125,7 +125,7 @@ def test_model_and_newton_argument_types(small_disk):
     with pytest.raises(TypeError, match="rest must be a RestState, got float"):
         ShellModel(m, Material(), 0.01, [Clamped("outer")])
     model = ShellModel(m, Material(), rest, [Clamped("outer")])
-    with pytest.raises(ValueError, match="max_step must be > 0"):
+    with pytest.raises(ValueError, match=r"max_step must be a number > 0 \(or None\), got 0.0"):
         minimize(model, model.initial_unknowns(), max_step=0.0, log=None)
 
 
