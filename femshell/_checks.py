@@ -25,6 +25,18 @@ def finite(name, v, lo=None, hi=None, lo_open=False, hi_open=False, text=None) -
     return v
 
 
+def integer(name, v, lo: int, what: str | None = None, hi: int | None = None) -> int:
+    """``int(v)`` when v is a whole number in [lo, hi] (an int, a float like 3.0, or a 0-d array as
+    np.load gives), or a ValueError naming ``name`` (``what``: the allowed values, for the message)."""
+    if isinstance(v, np.ndarray) and v.shape == ():
+        v = v.item()
+    ok = (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+          and math.isfinite(v) and int(v) == v and v >= lo and (hi is None or v <= hi))
+    if not ok:
+        raise ValueError(f"{name} must be {what or f'an integer >= {lo}'}, got {v!r}")
+    return int(v)
+
+
 def finite_vector(name, value, size: int, what: str | None = None) -> np.ndarray:
     """``value`` as a float array of shape (size,) with finite entries, or a ValueError naming ``name``."""
     try:

@@ -103,7 +103,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
-from ._checks import finite as _finite, finite_vector
+from ._checks import finite as _finite, finite_vector, integer as _integer
 from ._interrupts import committing, step_scope
 from .chemistry import ReactionDiffusion, curvature_source
 from .geometry import element_to_vertex, mean_curvature
@@ -386,17 +386,6 @@ class InitialSpot:
         width = params.h0 if self.width is None else self.width
         return gaussian_spot(points, amp, width, pole=self.pole, elongation=self.elongation,
                              direction=self.direction, distance=self.distance)
-
-
-def _integer(name, v, lo: int, what: str | None = None) -> int:
-    """A ValueError naming ``name`` unless v is a whole number >= lo (an int, or a float like 3.0)."""
-    if isinstance(v, np.ndarray) and v.shape == ():      # as a checkpoint loads it
-        v = v.item()
-    ok = (not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
-          and math.isfinite(v) and int(v) == v and v >= lo)
-    if not ok:
-        raise ValueError(f"{name} must be {what or f'an integer >= {lo}'}, got {v!r}")
-    return int(v)
 
 
 def _store_numbers(obj):
@@ -961,7 +950,6 @@ class CoupledLoop:
                 last = dt >= remaining * (1 - 1e-12)
                 h = remaining if last else dt
                 if h < st.dt_min * (1 - 1e-12) and not last:
-                    self.growth.apply(self.s)
                     raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: dt = {h:.3g} fell below dt_min = "
                                        f"{st.dt_min:.3g} ({reason}); the last accepted state is kept"
                                        + (self._steep_switch_hint(ds) if reason.startswith("max |Δs|") else "")
@@ -969,7 +957,6 @@ class CoupledLoop:
                 try:
                     c_new = self.chemistry.step(self.c, h, source=source, points=points)
                 except (ValueError, FloatingPointError, ArithmeticError, LinearSolverError) as exc:
-                    self.growth.apply(self.s)
                     raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: the chemistry step failed: "
                                        f"{exc}") from exc
                 if not np.all(np.isfinite(c_new)):

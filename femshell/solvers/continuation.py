@@ -873,9 +873,10 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
                 A = eng.correct(u_start, lam0, lam_fixed=lam0, update_scale=False)
             try:
                 A = eng.finish(A, None, direction)
-            except _SingularTangent as exc:
-                raise _StepFailure(f"is an equilibrium without a tangent there: a singular point (fold or branch "
-                                   f"point); start beside it or give initial_tangent ({exc})") from None
+            except _SingularTangent as exc:     # released below, as any error of the first point
+                raise ContinuationError(f"the first point at parameter {lam0:.6g} is an equilibrium without a tangent "
+                                        f"there: a singular point (fold or branch point); start beside it or give "
+                                        f"initial_tangent ({exc})") from None
         else:
             t0u = np.asarray(initial_tangent[0], float)
             t0l = float(initial_tangent[1])
@@ -888,8 +889,7 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
             A = eng.finish(A, t0)
     except _StepFailure as exc:
         eng.release()
-        what = str(exc) if str(exc).startswith("is an equilibrium") else f"did not converge ({exc})"
-        raise ContinuationError(f"the first point at parameter {lam0:.6g} {what}") from None
+        raise ContinuationError(f"the first point at parameter {lam0:.6g} did not converge ({exc})") from None
     except BaseException:
         eng.release()
         raise

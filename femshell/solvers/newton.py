@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .._checks import integer
 from .linear import LinearSolverError, Refactorizer, smallest_eigenvalues
 
 
@@ -488,11 +489,7 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
     if not all(np.isfinite(factors + [current])):
         raise ValueError(f"load factors and start must be finite, got start {start} and factors {factors}")
     # 2**-50 of an interval is about float resolution: more cuts would only repeat the same factor
-    whole = (not isinstance(max_cuts, bool) and isinstance(max_cuts, (int, float, np.integer, np.floating))
-             and math.isfinite(max_cuts) and max_cuts == int(max_cuts))
-    if not (whole and 0 <= max_cuts <= 50):
-        raise ValueError(f"max_cuts must be an integer in [0, 50], got {max_cuts!r}")
-    max_cuts = int(max_cuts)
+    max_cuts = integer("max_cuts", max_cuts, 0, "an integer in [0, 50]", hi=50)
     last = None  # the last converged NewtonResult, handed back with a failure
 
     def last_converged():
