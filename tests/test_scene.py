@@ -338,6 +338,28 @@ def test_resume_on_a_changed_mesh_file_is_refused(tmp_path, capsys):
     assert main(["run", "--out", str(out), "--resume", "-q"]) == 0
 
 
+def test_resume_from_another_directory_with_another_scene_is_refused(tmp_path, capsys):
+    """The run's mesh file moved away: its stored scene no longer validates as it stands. A scene
+    with the same mesh (moved) but another thickness must still be refused, not resumed as if equal."""
+    from femshell.cli import main
+    from femshell.mesh import plate, write_mesh
+
+    write_mesh(plate(1.0, 1.0, edge_length=0.25, structured=True), tmp_path / "p.vtu")
+    text = PLATE.replace('kind = "plate"\nlx = 1.0\nly = 1.0\nedge_length = 0.25\nstructured = true',
+                         'file = "p.vtu"').replace("stop = 1e-3", "stop = 1e-3\nmax_steps = 4\nn_eigs = 0")
+    p = write(tmp_path, text)
+    out = tmp_path / "run"
+    assert main(["run", str(p), "--out", str(out), "-q", "--set", "output.pictures=false", "--max-steps", "1"]) == 0
+    (tmp_path / "b").mkdir()
+    (tmp_path / "p.vtu").rename(tmp_path / "b" / "p.vtu")
+    q = write(tmp_path / "b", text.replace("thickness = 0.01", "thickness = 0.02"))
+    before = {f.name: f.read_bytes() for f in out.iterdir() if f.is_file()}
+    assert main(["run", str(q), "--out", str(out), "--resume", "-q", "--set", "output.pictures=false"]) == 2
+    err = capsys.readouterr().err
+    assert "made with another scene than the one given now" in err and "[shell] thickness: 0.01 in the run" in err
+    assert {f.name: f.read_bytes() for f in out.iterdir() if f.is_file()} == before
+
+
 def test_mesh_file_with_a_defect_is_a_scene_error(tmp_path):
     """A drawn mesh is checked like a generated one: a collapsed triangle is named, not met in the model."""
     from femshell.mesh import plate, write_mesh

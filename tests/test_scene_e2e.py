@@ -246,19 +246,25 @@ def test_ctrl_c_while_a_finished_run_writes_its_results_keeps_them_consistent(tm
     assert "pictures skipped" in capsys.readouterr().err
 
 
-def test_failed_step_stops_with_checkpoint_and_no_nan(tmp_path, monkeypatch):
-    from femshell.coupled import CoupledError, CoupledLoop
+def _second_step_raises(monkeypatch, exc):
+    """The coupled loop's second step raises ``exc``."""
+    from femshell.coupled import CoupledLoop
 
-    real = CoupledLoop.advance
-    calls = {"n": 0}
+    real, calls = CoupledLoop.advance, {"n": 0}
 
     def failing(self):
         calls["n"] += 1
         if calls["n"] == 2:
-            raise CoupledError("step 2: Newton diverged (simulated)")
+            raise exc
         return real(self)
 
     monkeypatch.setattr(CoupledLoop, "advance", failing)
+
+
+def test_failed_step_stops_with_checkpoint_and_no_nan(tmp_path, monkeypatch):
+    from femshell.coupled import CoupledError
+
+    _second_step_raises(monkeypatch, CoupledError("step 2: Newton diverged (simulated)"))
     out = tmp_path / "run"
     assert run("default", out, overrides=RESUME) == 1
     s = json.loads((out / "summary.json").read_text())
@@ -459,6 +465,71 @@ def test_a_loaded_scene_runs_and_a_wrong_type_is_named(tmp_path):
         run_scene(sc, tmp_path / "run2", overrides=["solver.stop=2e-4"])
     with pytest.raises(SceneError, match="got int"):
         load_scene(3)
+
+
+def test_scene_step_limits_and_newton_iterations_reach_the_solver(tmp_path, monkeypatch):
+    # a time scene's solver.max_steps stops one invocation like --max-steps (it was ignored)
+    out = tmp_path / "time"
+    assert run("default", out, overrides=RESUME + ["solver.max_steps=2"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "paused" and s["steps"] == 2 and "(solver.max_steps)" in s["message"]
+    # --max-steps 0 takes no continuation step (it took one)
+    over = ["mesh.edge_length=0.4", "solver.stop=1.1e-4", "solver.max_steps=5", "solver.n_eigs=0",
+            "solver.switch_branch=false", "solver.newton_max_iter=5"]
+    out = tmp_path / "cont"
+    assert run("clamped-plate-buckling", out, extra=["--max-steps", "0"], overrides=over) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "paused" and s["steps"] == 0
+    # solver.newton_max_iter limits the continuation's corrector (it was not passed on)
+    import femshell.solvers.continuation as cont
+
+    seen, real = [], cont.continuation
+
+    def recording(*a, **k):
+        seen.append(k.get("max_corrector_iterations"))
+        return real(*a, **k)
+
+    monkeypatch.setattr(cont, "continuation", recording)
+    assert run("clamped-plate-buckling", tmp_path / "cont2", overrides=over) == 0
+    assert seen == [5]
+
+
+def test_an_unexpected_error_mid_run_is_a_failed_run_with_its_state(tmp_path, monkeypatch, capsys):
+    _second_step_raises(monkeypatch, IndexError("index 7 is out of bounds (simulated bug)"))
+    out = tmp_path / "run"
+    assert run("default", out, overrides=RESUME) == 1           # a failed run (was exit 2, "bad input")
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and s["steps"] == 1
+    assert "internal error after step 1 (IndexError: index 7 is out of bounds (simulated bug))" in s["message"]
+    assert load_checkpoint(out / "checkpoint.npz")[1]["step"] == 1
+    assert "Traceback" in capsys.readouterr().err                   # for the report
+
+
+def test_a_stationary_run_is_not_sent_round_in_circles(tmp_path, capsys):
+    scene = tmp_path / "still.toml"      # no seed, no diffusion: nothing happens, stationary at once
+    scene.write_text('description = "a sphere without a seed"\n[mesh]\nkind = "sphere"\nradius = 5.0\n'
+                     'n_vertices = 150\n[shell]\nthickness = 1.0\n[growth]\nlaw = "contractility"\n'
+                     '[chemistry]\nD = 0.0\n[initial]\nkind = "none"\n[solver]\nkind = "time"\nt_final = 10.0\n')
+    out = tmp_path / "run"
+    assert run(str(scene), out) == 0
+    assert json.loads((out / "summary.json").read_text())["status"] == "stationary"
+    capsys.readouterr()
+    assert run(str(scene), out, extra=["--resume"], overrides=["solver.t_final=20"]) == 0
+    msg = capsys.readouterr().out
+    assert "nothing to do" in msg and "stationary" in msg and "extend it with --set solver.t_final" not in msg
+
+
+def test_spots_take_the_elongation_direction():
+    from femshell.mesh import sphere
+    from femshell.scene.build import coupled_parameters, initial_concentration
+
+    mesh = sphere(15.0, n_vertices=300)
+    c = []
+    for d in ("[1.0, 0.0, 0.0]", "[0.0, 1.0, 0.0]"):
+        sc = load_scene("default", ["initial.kind=spots", "initial.layout=icosahedron", "initial.elongation=3.0",
+                                    f"initial.direction={d}"])
+        c.append(initial_concentration(sc, mesh, coupled_parameters(sc)[0]))
+    assert np.abs(c[0] - c[1]).max() > 0.1 * c[0].max()
 
 
 # ----------------------------------------------------------------------------- kill -9

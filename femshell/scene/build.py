@@ -409,7 +409,8 @@ def initial_concentration(scene: Scene, mesh, params):
     width = params.h0 if ini["width"] is None else ini["width"]
     pts = np.asarray(mesh.points, float)
     # each vertex takes its largest spot (overlapping spots do not add up above the amplitude)
-    return np.max([gaussian_spot(pts, amp, width, pole=tuple(p), elongation=ini["elongation"],
+    direction = None if ini["direction"] is None else tuple(ini["direction"])
+    return np.max([gaussian_spot(pts, amp, width, pole=tuple(p), elongation=ini["elongation"], direction=direction,
                                  distance=ini["distance"]) for p in spot_centres(ini)], axis=0)
 
 

@@ -52,6 +52,7 @@ import shutil
 import signal
 import sys
 import time
+import traceback
 from pathlib import Path
 
 import numpy as np
@@ -334,6 +335,7 @@ class BaseRunner:
         self.rd = rd
         self.p = progress
         self.max_steps = max_steps
+        self.max_steps_from = "--max-steps"
         self.verbose = verbose
         self.out = scene["output"]
         self.step = 0                 # accepted steps in total (all invocations)
@@ -404,7 +406,7 @@ class BaseRunner:
         """Step until finished (subclasses whose solver drives the loop override this)."""
         while not self.finished():
             if self.max_steps is not None and self.steps_this_run >= self.max_steps:
-                self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps (--max-steps); "
+                self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps ({self.max_steps_from}); "
                                                        "continue with --resume")
                 return
             with step_scope():              # a Ctrl-C once the step commits waits for its frame and checkpoint
@@ -473,6 +475,11 @@ class BaseRunner:
                     self.status = self.final_status()
             except StepFailure as exc:
                 self.status, self.message = "failed", str(exc)
+                code = 1
+            except Exception as exc:        # a bug, not bad input: keep the last accepted state and say so
+                traceback.print_exc()
+                self.status, self.message = "failed", (f"internal error after step {self.step} ({type(exc).__name__}: "
+                                                       f"{exc}); please report it with the traceback above")
                 code = 1
             except KeyboardInterrupt:
                 self.status = "interrupted"
@@ -615,6 +622,12 @@ def _version():
 class TimeRunner(BaseRunner):
     kind = "time"
 
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        cap = self.scene["solver"].get("max_steps")      # steps of one invocation, like --max-steps
+        if cap is not None and (self.max_steps is None or cap < self.max_steps):
+            self.max_steps, self.max_steps_from = cap, "solver.max_steps"
+
     def _log(self, msg):
         if msg.startswith("initial equilibrium") or (self.verbose and not msg.startswith("step ")):
             self.p.say(f"  {msg.strip()}")
@@ -632,8 +645,9 @@ class TimeRunner(BaseRunner):
         if c0 is None:
             return
         field = c0.field(np.asarray(self.mesh.points, float), params) if hasattr(c0, "field") else np.asarray(c0)
-        amp = self.scene["initial"].get("amplitude") or params.c_max
-        width = self.scene["initial"].get("width") or params.h0
+        ini = self.scene["initial"]
+        amp = params.c_max if ini.get("amplitude") is None else ini["amplitude"]
+        width = params.h0 if ini.get("width") is None else ini["width"]
         if math.isfinite(amp) and amp > 0 and field.max() < 0.5 * amp:
             pts, e = np.asarray(self.mesh.points, float), self.mesh.topology.edges
             edge = float(np.linalg.norm(pts[e[:, 1]] - pts[e[:, 0]], axis=1).mean())
@@ -1138,6 +1152,10 @@ class ContinuationRunner(BaseRunner):
     # --- the loop: continuation() drives, the callback reports
     def loop(self):
         while self.phase != "done":
+            if self.max_steps is not None and self.steps_this_run >= self.max_steps:
+                self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps ({self.max_steps_from}); "
+                                                       "continue with --resume")
+                return
             if self.phase == "primary":
                 self._segment(primary=True)
             elif self.phase == "switched":
@@ -1151,6 +1169,7 @@ class ContinuationRunner(BaseRunner):
         return dict(ds_min=so["ds_min"], ds_max=so["ds_max"] or 2 * ds, max_steps=max(so["max_steps"] - steps_done, 1),
                     n_eigs=so["n_eigs"], record=self.record, detect=so["detect"], stop_at=tuple(so["stop_at"]),
                     rtol=so["newton_rtol"] or 1e-8, backend=so["backend"],
+                    **({} if so["newton_max_iter"] is None else {"max_corrector_iterations": so["newton_max_iter"]}),
                     log=(lambda s: self.p.say(s)) if self.verbose else None)
 
     def _stop(self, label):
@@ -1242,7 +1261,7 @@ class ContinuationRunner(BaseRunner):
         self.segments += self.cur_rows
         self.cur_rows = []
         if branch.status == "callback":       # --max-steps
-            self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps (--max-steps); "
+            self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps ({self.max_steps_from}); "
                                                    "continue with --resume")
             self.resume_tangent = None if self.prev is None else (self.u - self.prev[0], self.lam - self.prev[1])
             return
@@ -1312,8 +1331,9 @@ class ContinuationRunner(BaseRunner):
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(cols)
         for r in rows:
-            w.writerow(["" if r.get(k) is None else (repr(float(r[k])) if isinstance(r.get(k), float) else r.get(k))
-                        for k in cols])
+            # an empty cell for a missing or non-finite value: never 'nan' in a result file
+            w.writerow(["" if r.get(k) is None or (isinstance(r[k], float) and not math.isfinite(r[k])) else
+                        (repr(float(r[k])) if isinstance(r[k], float) else r[k]) for k in cols])
         fio.atomic_write_text(self.rd.path / "branch.csv", buf.getvalue())
 
     def checkpoint(self):
@@ -1384,13 +1404,19 @@ RUNNERS = {"time": TimeRunner, "static": StaticRunner, "continuation": Continuat
 # ----------------------------------------------------------------------------- entry point
 
 def _differences_from(text, label, sc, base_dir) -> list:
-    """:func:`_scene_differences` of the scene TOML ``text`` (None or unreadable: none) against ``sc``."""
+    """:func:`_scene_differences` of the scene TOML ``text`` (None: none) against ``sc``.
+
+    A stored scene that no longer validates cannot be compared: refused, rather than taken as equal.
+    """
     if not text:
         return []
     try:
-        old = validate(parse_scene(text, str(label)), name=sc.name, label=str(label), base_dir=base_dir).data
-    except SceneError:
-        return []
+        old = validate(parse_scene(text, str(label)), name=sc.name, label=str(label), base_dir=base_dir,
+                       check_files=False).data
+    except SceneError as exc:
+        raise RunDirError(f"{label}: the scene the run was made with does not validate any more, so the scene "
+                          f"given now cannot be checked against it and the run is not resumed:\n{exc}\n(start a "
+                          "new run with --overwrite or another --out)") from None
     return _scene_differences(old, sc.data)
 
 
@@ -1491,9 +1517,15 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         summ = rd.summary()
         if summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step") \
                 and not _extends(summ, sc):
-            how = ("extend it with --set solver.t_final=... --resume" if sc.kind == "time" else
-                   "a finished continuation or load stepping is not extended: start a new run with --overwrite "
-                   "or another --out")
+            if sc.kind != "time":
+                how = ("a finished continuation or load stepping is not extended: start a new run with --overwrite "
+                       "or another --out")
+            elif summ["status"] == "stationary":
+                how = ("it stopped because the pattern became stationary, which a resume does not undo: to run past "
+                       "that, start a new run with --overwrite or another --out and stricter or zero "
+                       "solver.stationary_* values")
+            else:
+                how = "extend it with --set solver.t_final=... --resume"
             print(f"{rd.path}: the run is already finished (status {summ['status']}, {summ['steps']} steps); "
                   f"nothing to do ({how})", file=stream)
             return 0

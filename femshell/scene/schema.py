@@ -215,7 +215,8 @@ SECTIONS = {
         "width": Spec(F, None, "spot width d (default h)", **POS),
         "elongation": Spec(F, 1.0, "spot elongation along `direction`", **POS),
         "pole": Spec("vec3", [0.0, 0.0, 1.0], "direction of the spot's centre from the mesh centroid"),
-        "direction": Spec("vec3", None, "tangent direction of the elongation (default x)"),
+        "direction": Spec("vec3", None, "tangent direction of the elongation (default x; for kind = \"spots\" projected onto each "
+                          "spot's tangent plane)"),
         "distance": Spec(S, "geodesic", "distance used in the Gaussian", choices=("geodesic", "chord", "planar")),
     },
     "output": {
@@ -295,7 +296,7 @@ SOLVER_KEYS = {
                                     "step is cut (0: never)", lo=0),
         "feedback_amplification": Spec(F, 0.5, "dt keeps an oscillation of the staggered chemistry-mechanics step "
                                                "damped: amplification >= -this (0: no bound)", lo=0.0, hi=1.0),
-        "max_steps": Spec(I, None, "stop after this many steps (continue with --resume)", lo=0),
+        "max_steps": Spec(I, None, "stop after this many steps of one invocation (continue with --resume)", lo=0),
         **NEWTON,
     },
 }
@@ -560,10 +561,12 @@ def parse_scene(text: str, label: str) -> dict:
         raise SceneError(f"{label}: not valid TOML: {exc}") from None
 
 
-def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None) -> Scene:
+def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None, check_files=True) -> Scene:
     """Check a raw scene dict completely; returns a :class:`Scene` with all defaults filled in.
 
     Raises :class:`SceneError` with one line per problem found (all of them, not only the first).
+    ``check_files=False`` resolves a mesh file's path without requiring the file (to compare a
+    stored scene whose mesh has moved since).
     """
     ck = _Checker(label)
     base_dir = Path(base_dir) if base_dir is not None else (Path(source).parent if source else Path.cwd())
@@ -649,7 +652,7 @@ def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None) ->
         if mkind == "file" and mesh.get("file"):
             p = Path(mesh["file"]).expanduser()
             full = p if p.is_absolute() else base_dir / p
-            if not full.is_file():
+            if check_files and not full.is_file():
                 ck.err(f"[mesh] file = {_show(mesh['file'])}: no such file ({full})")
             else:
                 mesh["file"] = str(full.resolve())
