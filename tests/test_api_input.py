@@ -361,3 +361,30 @@ def test_growth_targets_and_the_chemistry_step_name_their_bad_arguments(small_di
             rd.step(np.zeros(m.n_vertices), dt)
     with pytest.raises(ValueError, match="n_vertices must be an integer >= 1, got 4.7"):
         ReactionDiffusion(m.triangles, 4.7)
+
+
+def test_model_refuses_a_mesh_it_would_only_fail_on_later(small_disk):
+    from femshell.mesh import SurfaceMesh
+    from femshell.shell import RestState
+
+    m = small_disk
+    rest = flat_rest_state(m.points, m.triangles, 0.01)
+    pts = np.array(m.points)
+    pts[3, 2] = np.nan
+    with pytest.raises(ValueError, match=r"mesh points hold NaN or infinity at 1 vertices \(first: 3\)"):
+        ShellModel(SurfaceMesh(pts, m.triangles), Material(), rest)
+    tri = np.array(m.triangles)
+    tri[0] = tri[0, ::-1]                       # one triangle turned over
+    with pytest.raises(ValueError, match="not consistently oriented .* fix with femshell.mesh.orient_consistently"):
+        ShellModel(SurfaceMesh(m.points, tri), Material(), rest)
+    # the rest state's arrays are read-only copies: an in-place edit would not reach the model's cache
+    a = np.array(rest.metric)
+    r2 = RestState(a, rest.curvature, rest.thickness)
+    a[:] = 0.0
+    assert np.all(r2.metric[:, 0, 0] > 0)
+    with pytest.raises(ValueError, match="read-only"):
+        r2.metric[:, 0, 0] *= 1.1
+    b = np.zeros_like(a)
+    b[:, 0, 1] = 0.1
+    with pytest.raises(ValueError, match="target curvature must be symmetric, element 0"):
+        RestState(rest.metric, b, 0.01)

@@ -115,7 +115,9 @@ def mid_edge_normals(x, p, theta, kind, direction, sign):
         ng = _unit(jnp.cross(a - b, p[k] - b))
         m = _unit(nf + jnp.where(kind[k] == INTERIOR, 1.0, 0.0) * ng)
         rotated = jnp.cos(theta[k]) * m + jnp.sin(theta[k]) * jnp.cross(t, m)
-        sym = _unit(jnp.cross(direction[k], t))
+        # only a symmetry edge takes the cross product: on any other edge it can vanish (an edge turned
+        # onto its stored direction), and its NaN derivative would leak through the outer where
+        sym = _unit(jnp.where(kind[k] == SYMMETRY, jnp.cross(direction[k], t), nf))
         sym = sym * jnp.sign(jax.lax.stop_gradient(jnp.dot(sym, nf)) + 1e-300)
         ne = jnp.where(kind[k] == CLAMPED, direction[k], jnp.where(kind[k] == SYMMETRY, sym, rotated))
         out.append(ne)
@@ -250,7 +252,7 @@ def edge_q(y, k, kind, direction, sign):
     else:
         m = _unit(nf + jnp.where(kind == INTERIOR, 1.0, 0.0) * ng)
         rotated = jnp.cos(th) * m + jnp.sin(th) * jnp.cross(t, m)
-        sym = _unit(jnp.cross(direction, t))
+        sym = _unit(jnp.where(kind == SYMMETRY, jnp.cross(direction, t), nf))     # see mid_edge_normals
         sym = sym * jnp.sign(jax.lax.stop_gradient(jnp.dot(sym, nf)) + 1e-300)
         ne = jnp.where(kind == CLAMPED, direction, jnp.where(kind == SYMMETRY, sym, rotated))
     e1, e2 = x[1] - x[0], x[2] - x[0]

@@ -26,15 +26,19 @@ def metric(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 
 @dataclass
 class RestState:
-    """Per-element targets: ``metric`` (m,2,2), ``curvature`` (m,2,2), ``thickness`` (m,)."""
+    """Per-element targets: ``metric`` (m,2,2), ``curvature`` (m,2,2), ``thickness`` (m,).
+
+    The arrays are copies and read-only: a model caches what it derives from them (the inverse
+    metric, the areas), so a change goes through a new RestState and ``set_rest_state``.
+    """
 
     metric: np.ndarray
     curvature: np.ndarray
     thickness: np.ndarray
 
     def __post_init__(self):
-        self.metric = np.asarray(self.metric, float)
-        self.curvature = np.asarray(self.curvature, float)
+        self.metric = np.array(self.metric, float)
+        self.curvature = np.array(self.curvature, float)
         h = np.asarray(self.thickness, float)
         if h.ndim > 1 or h.size not in (1, len(self.metric)):
             raise ValueError(f"thickness must be a number or one value per element (shape ({len(self.metric)},)), "
@@ -53,6 +57,13 @@ class RestState:
             raise ValueError(f"target thickness must be > 0, element {bad} has {self.thickness[bad]}")
         if not np.all(np.isfinite(self.curvature)):
             raise ValueError("target curvature has NaN or inf entries")
+        for name, t in (("metric", self.metric), ("curvature", self.curvature)):
+            skew = np.abs(t[:, 0, 1] - t[:, 1, 0])
+            if np.any(skew > 1e-12 * np.abs(t).max(axis=(1, 2))):
+                bad = int(np.argmax(skew))
+                raise ValueError(f"target {name} must be symmetric, element {bad} has {t[bad].tolist()}")
+        for a in (self.metric, self.curvature, self.thickness):
+            a.setflags(write=False)
 
     @property
     def area(self) -> np.ndarray:
