@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from femshell.geometry import triangle_area_vectors
-from femshell.mesh import (MeshError, MeshReport, SurfaceMesh, check_mesh, format_quality,
+from femshell.mesh import (MeshError, MeshReport, SurfaceMesh, annulus, check_mesh, format_quality,
                            orient_consistently, quality_report)
 from femshell.mesh.checks import warn_poor_quality
 
@@ -214,6 +214,26 @@ def test_unreferenced_vertices_named():
     msg = str(err.value)
     assert "unreferenced vertices" in msg and "vertex 20 at [5.0, 5.0, 0.0]" in msg and "vertex 21" in msg
     assert "2 such vertices" in msg
+
+
+def test_coincident_vertices_named_unless_a_named_cut():
+    # triangle soup (an unmerged STL file): 80 triangles, 240 corners, 42 points: 198 copies
+    m = icosphere()
+    pts = m.points[m.triangles].reshape(-1, 3)
+    with pytest.raises(MeshError, match=r"coincident vertices .* \(198 such pairs\); merge them"):
+        check_mesh(SurfaceMesh(pts, np.arange(len(pts)).reshape(-1, 3)))
+    # a crack: one triangle takes a copy of the interior vertex 6 (at (0.25, 2/3))
+    m = plate()
+    pts = np.vstack([m.points, m.points[6]])
+    tri = np.array(m.triangles)
+    first = np.argwhere(tri == 6)[0]
+    tri[first[0], first[1]] = len(pts) - 1
+    with pytest.raises(MeshError, match=r"coincident vertices .*: vertices 6 and 20 at \[0.25, 0.666"):
+        check_mesh(SurfaceMesh(pts, tri))
+    # the annulus' slit: both copies on named boundary curves, a deliberate cut
+    check_mesh(annulus(0.5, 1.0, edge_length=0.2, slit=True))
+    with pytest.raises(TypeError, match="check_mesh takes a SurfaceMesh, got tuple"):
+        check_mesh((pts, tri))
 
 
 def test_bowtie_vertex_named():

@@ -47,7 +47,7 @@ def assert_segments_run_with_surface_on_left(mesh, names):
 
 # ----------------------------------------------------------------------------- sphere
 
-@pytest.mark.parametrize("n", [500, 2500, 5000])
+@pytest.mark.parametrize("n", [500, 1000, 2500, 5000])      # 1000: gmsh alone gave 1 106
 def test_sphere_vertex_count_within_10_percent(n):
     m = sphere(radius=30.0, n_vertices=n)
     assert abs(m.n_vertices - n) <= 0.1 * n
@@ -180,6 +180,9 @@ def test_plate_structured_right_diagonals():
 def test_plate_structured_n_vertices():
     m = plate(1.0, 1.0, n_vertices=441, structured=True)
     assert m.n_vertices == 441
+    # crossed: (1/h + 1)^2 grid vertices and 1/h^2 cell centres (the centres were left out: 925 for 500)
+    m = plate(1.0, 1.0, n_vertices=481, structured=True, diagonal="crossed")
+    assert m.n_vertices == 481
     assert strip(10.0, 1.0, n_vertices=11 * 101, structured=True).n_vertices == 11 * 101
     assert strip(10.0, 1.0, n_vertices=12, structured=True).n_vertices == 22   # at least one cell across
 

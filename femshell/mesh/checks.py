@@ -175,6 +175,26 @@ def _component_orientation_scores(points, triangles, topo, label, n_comp, flat_t
     return closed, flat, score
 
 
+def _coincident_vertices(points, named_curves) -> np.ndarray:
+    """Pairs (i, j) of vertices at the same point (within 1e-10 of the mesh's extent), except pairs
+    whose two vertices both lie on named boundary curves (a deliberate cut, like a slit)."""
+    extent = max(float(np.ptp(points, axis=0).max()), 1e-300)
+    key = np.round((points - points.min(axis=0)) / (1e-10 * extent)).astype(np.int64)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    shared = np.flatnonzero(counts[inverse] > 1)
+    if not len(shared):
+        return np.zeros((0, 2), np.int64)
+    order = shared[np.argsort(inverse[shared], kind="stable")]
+    first = np.r_[True, inverse[order][1:] != inverse[order][:-1]]
+    lead = np.maximum.accumulate(np.where(first, np.arange(len(order)), 0))
+    pairs = np.column_stack([order[lead], order])[~first]           # each later copy with the first
+    on_curve = np.zeros(len(points), bool)
+    for seg in named_curves.values():
+        on_curve[np.asarray(seg, np.int64).ravel()] = True
+    return pairs[~(on_curve[pairs[:, 0]] & on_curve[pairs[:, 1]])]
+
+
 # --------------------------------------------------------------------------- check_mesh
 
 def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
@@ -216,6 +236,9 @@ def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
     >>> r.is_closed, r.n_boundary_edges, r.area
     (False, 4, 1.0)
     """
+    if not isinstance(mesh, SurfaceMesh):
+        raise TypeError(f"check_mesh takes a SurfaceMesh, got {type(mesh).__name__} (build one with "
+                        "SurfaceMesh(points, triangles), or read a file with femshell.mesh.read_mesh)")
     pts, tri = mesh.points, mesh.triangles
     n, m = len(pts), len(tri)
     label = f"mesh '{mesh.name}'" if mesh.name else "mesh"
@@ -317,6 +340,14 @@ def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
         problems.append("unreferenced vertices (they leave singular rows in the stiffness): " + _examples(
             unused, lambda v: f"vertex {v} at {pts[v].tolist()}")
             + f" ({_plural(len(unused), 'vertex', 'vertices')}); remove them")
+
+    twins = _coincident_vertices(pts, mesh.boundary)
+    if len(twins):
+        problems.append("coincident vertices (separate copies of one point, so the surface is cut there, as in "
+                        "an unmerged STL file): " + _examples(
+                            twins, lambda pr: f"vertices {pr[0]} and {pr[1]} at {pts[pr[0]].tolist()}")
+                        + f" ({_plural(len(twins), 'pair')}); merge them, or name the cut as boundary curves "
+                        "on both sides (like the annulus' slit)")
 
     bowtie = _nonmanifold_vertices(tri, topo)
     if len(bowtie):
