@@ -210,6 +210,8 @@ def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
        flat mesh (normal z of the wrong sign compared with the majority); folded
        triangles on a curved mesh (normals more than 150 degrees apart across an
        edge); unreferenced vertices (they leave singular rows in the stiffness);
+       coincident vertices (an unmerged mesh, cut along them) unless both lie on
+       named boundary curves (a deliberate cut such as the annulus' slit);
        non-manifold (bow-tie) vertices; normals against the convention of design.md
        section 3 (inward on a closed component, -z on a flat mesh: fix with
        :func:`orient_consistently`); and the optional requirements.
