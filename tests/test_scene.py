@@ -152,6 +152,9 @@ def test_inconsistent_combinations(tmp_path, errors_of):
     assert any("law = \"uniform\" cannot run in time" in e for e in errs)
     errs = errors_of(tmp_path, PLATE + "[mesh2]\n")
     assert len(errs) == 1 and "[mesh2] is not a section; did you mean [mesh]?" in errs[0]
+    # a continuation that would start or stop outside its parameter's range (was met only mid-run)
+    errs = errors_of(tmp_path, PLATE.replace("stop = 1e-3", "start = -2.0\nstop = 1e-3"))
+    assert errs == ["scene.toml: [solver] start = -2 is out of range for growth.strain: > -1 (a stretch 1 + g > 0)"]
 
 
 def test_key_of_another_kind_is_named(tmp_path, errors_of):
