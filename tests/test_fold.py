@@ -21,11 +21,13 @@ def test_shallow_arch_passes_and_marks_the_folds():
     assert [p.label for p in b.special_points] == ["LP", "LP"]          # two folds, no branch point
     assert [r["special"] for r in b.rows].count("LP") == 2
     up, low = folds
-    # 20 elements along the span: O(h^2) error 0.3 % of λ_max and theory error (πe/L)^2 = 0.1 %; 2 % is loose
-    assert abs(up.parameter / lam_max - 1) < 0.02
-    assert abs(low.parameter / lam_min - 1) < 0.05                        # λ_min = 3.5 − 2.28: cancellation
+    # 20 elements along the span: measured errors (validation/results/shallow-arch-snap.json, h = 0.5)
+    # 0.33 % on λ_max, 1.45 % on λ_min (3.5 − 2.28: cancellation), 0.09 % / 0.04 % on ξ, 0.56 % on the
+    # curve; the theory's own error (πe/L)^2 = 0.1 %. About 3x: a load 2 % off fails
+    assert abs(up.parameter / lam_max - 1) < 0.01
+    assert abs(low.parameter / lam_min - 1) < 0.04
     xi = {r["s"]: r["xi"] for r in b.rows if r["special"] == "LP"}
-    assert abs(xi[up.s] / xs - 1) < 0.03 and abs(xi[low.s] / -xs - 1) < 0.03
+    assert abs(xi[up.s] / xs - 1) < 0.003 and abs(xi[low.s] / -xs - 1) < 0.003
     assert abs(up.tangent[1]) < 1e-3 and abs(low.tangent[1]) < 1e-3       # dλ/ds = 0 at a fold
     assert (up.n_negative_before, up.n_negative_after) == (0, 1)
     assert (low.n_negative_before, low.n_negative_after) == (1, 0)
@@ -38,7 +40,7 @@ def test_shallow_arch_passes_and_marks_the_folds():
     # the unstable part really is the snap: the mid-span goes from above to below the chord
     assert max(r["xi"] for r in between) > 0 > min(r["xi"] for r in between)
     # every point lies on the theoretical load-displacement curve
-    assert max(abs(r["parameter"] - float(theory_load(r["xi"]))) for r in pts) < 0.02 * lam_max
+    assert max(abs(r["parameter"] - float(theory_load(r["xi"]))) for r in pts) < 0.015 * lam_max
     checks, _ = fold_checks(b)
     assert checks == {"passed": True, "marked": True, "inertia": True}
 

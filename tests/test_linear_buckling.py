@@ -46,11 +46,15 @@ def test_uniform_growth_free_disk_is_stress_free(disk):
     assert np.abs(N).max() < 1e-10 * 0.1 * 0.01
 
 
-def test_clamped_disk_first_load_within_one_percent(clamped_disk_modes):
+def test_clamped_disk_first_loads(clamped_disk_modes):
+    from scipy.special import jn_zeros
+
+    # clamped disk under uniform compression: k a = j_{n+1,1}, the first zero of J_{n+1} (n = 0, 1, 2).
+    # Measured errors at 2 000 vertices 3.0e-4, 1.7e-3, 3.2e-3 (from below): tolerances about 3x
     _, k2 = clamped_disk_modes
-    assert k2[0] == pytest.approx(14.682, rel=1e-2)
-    assert k2[1] == pytest.approx(26.375, rel=1e-2)
-    assert k2[3] == pytest.approx(40.707, rel=1e-2)
+    assert k2[0] == pytest.approx(jn_zeros(1, 1)[0] ** 2, rel=1e-3)
+    assert k2[1] == pytest.approx(jn_zeros(2, 1)[0] ** 2, rel=5e-3)
+    assert k2[3] == pytest.approx(jn_zeros(3, 1)[0] ** 2, rel=1e-2)
 
 
 def test_clamped_disk_mode_numbers(clamped_disk_modes):
@@ -64,7 +68,7 @@ def test_simply_supported_square_k4():
     m = generators.plate(1.0, 1.0, n_vertices=1200)
     p, t = np.asarray(m.points)[:, :2], np.asarray(m.triangles)
     res = lb.buckling_loads(p, t, (-1.0, 0.0, 0.0), nu=NU, D=1.0, bc="simply_supported", k=1)
-    assert res.mu[0] / math.pi ** 2 == pytest.approx(4.0, rel=2e-2)
+    assert res.mu[0] / math.pi ** 2 == pytest.approx(4.0, rel=5e-3)      # k = 4; measured error 1.7e-3
 
 
 def test_tension_has_no_positive_load_factor():

@@ -198,7 +198,7 @@ def test_foreign_file_without_names(tmp_path):
 
 
 def test_write_rejects_non_mesh(tmp_path):
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match="write_mesh needs a SurfaceMesh, got dict"):
         write_mesh({"points": []}, tmp_path / "x.vtu")
 
 
