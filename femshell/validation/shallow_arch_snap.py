@@ -59,9 +59,9 @@ are amplified by λ_max/λ_min ≈ 4.7) and 0.16 % on the whole load–displacem
 off, a lumping error say, fails λ_max and the curve). The full study (h = 0.5 ... 0.0625)
 reaches the theory floor on its finest mesh (0.10 %, 0.03 %, 0.04 %, 0.10 %) and allows 0.3 %
 on each (0.2 % on ξ), and 0.5 % on the h²-Richardson extrapolation of λ_max (5x the (πe/L)²
-theory error). The observed order against theory flattens at the theory floor; the order from successive differences of the
-three finest meshes (no reference needed) is reported too. The qualitative
-rows (the continuation passes both folds without stopping and reaches the stable inverted
+theory error). The observed order against theory flattens at the theory floor; the order from
+successive differences of the three finest meshes (no reference needed) is reported too. The
+qualitative rows (the continuation passes both folds without stopping and reaches the stable inverted
 branch; exactly two folds "LP" and no branch point are marked; the number of negative
 eigenvalues is 0, then 1 between the folds, then 0) must hold on every mesh.
 """
