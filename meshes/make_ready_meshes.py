@@ -1,6 +1,6 @@
 """Regenerate the small ready meshes in this directory (see README.md).
 
-    cd /work/main && python3 meshes/make_ready_meshes.py
+    .venv/bin/python meshes/make_ready_meshes.py        # from the repository root
 
 Each mesh comes from a femshell.mesh generator with a fixed seed, so rerunning
 gives the same files on the same gmsh version.
@@ -30,6 +30,9 @@ READY = {
 
 
 def main():
+    if len(sys.argv) > 1:                  # no options: say so instead of overwriting the meshes
+        print(__doc__.strip() + "\n\n(takes no arguments)", file=sys.stderr)
+        sys.exit(0 if sys.argv[1] in ("-h", "--help") else 2)
     for name, (make, _, _) in READY.items():
         mesh = make()
         write_mesh(mesh, HERE / name)

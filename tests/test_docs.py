@@ -23,3 +23,17 @@ def test_docs_build(tmp_path):
     for name in ("buckling", "mechanochemistry", "convergence"):     # the tutorials, page and script
         assert (tmp_path / "tutorials" / f"{name}.md").exists() and (tmp_path / "tutorials" / f"{name}.py").exists()
         assert f"tutorials/{name}.md" in index
+
+
+def test_accuracy_page_takes_results_given_relative_to_the_repository(tmp_path, monkeypatch):
+    """`validation/convergence.py --results validation/results` from the repository root (the
+    convergence tutorial's default --out is such a path): it failed in Path.relative_to."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("convergence_page", ROOT / "validation" / "convergence.py")
+    page = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(page)
+    monkeypatch.chdir(ROOT)
+    assert page._rel("validation/results/scordelis-lo.json") == "validation/results/scordelis-lo.json"
+    assert page._rel(str(ROOT / "validation" / "results" / "x.json")) == "validation/results/x.json"
+    assert page._rel(str(tmp_path / "x.json")) == str(tmp_path / "x.json")

@@ -419,7 +419,9 @@ def generated_markdown(results, images: Path, doc_path: Path):
 
 
 def _rel(f):
-    return str(Path(f).relative_to(ROOT)) if Path(f).resolve().is_relative_to(ROOT) else str(f)
+    """``f`` relative to the repository when inside it (given relative to the working directory or not)."""
+    full = Path(f).resolve()
+    return str(full.relative_to(ROOT)) if full.is_relative_to(ROOT) else str(f)
 
 
 def provenance_table(results):
