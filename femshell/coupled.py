@@ -571,8 +571,9 @@ class StepRecord:
     """What happened in one accepted step (or the initial state, step 0).
 
     t, dt : time after the step and the step length (1/β). newton_iterations : full Newton
-    iterations of the accepted solve (0 when its quasi-Newton iterations sufficed); cuts : rejected attempts before it. max_c : max c; max_H,
-    min_H : extremes of the vertex H (1/length); max_s : largest stretch; ds : max
+    iterations of the accepted solve (0 when its quasi-Newton iterations sufficed); cuts :
+    rejected attempts before it. max_c : max c; max_H, min_H : extremes of the vertex H
+    (1/length); max_s : largest stretch; ds : max
     |Δs| of the step; energy : elastic energy (E·length³); n_spots : N_sp (regions
     with c > c*); rate_c, rate_x : the stationarity measures (TimeStepping);
     stable : the Hessian at the equilibrium had no negative eigenvalue; wall_s :

@@ -343,7 +343,8 @@ def test_resume_on_a_changed_mesh_file_is_refused(tmp_path, capsys):
 
 def test_resume_from_another_directory_with_another_scene_is_refused(tmp_path, capsys):
     """The run's mesh file moved away: its stored scene no longer validates as it stands. A scene
-    with the same mesh (moved) but another thickness must still be refused, not resumed as if equal."""
+    with the same mesh (moved) but another thickness must still be refused, not resumed as if equal;
+    the same scene with the moved mesh resumes."""
     from femshell.cli import main
     from femshell.mesh import plate, write_mesh
 
@@ -360,7 +361,11 @@ def test_resume_from_another_directory_with_another_scene_is_refused(tmp_path, c
     assert main(["run", str(q), "--out", str(out), "--resume", "-q", "--set", "output.pictures=false"]) == 2
     err = capsys.readouterr().err
     assert "made with another scene than the one given now" in err and "[shell] thickness: 0.01 in the run" in err
+    assert "[mesh] file" not in err                       # the move alone is no difference: the content is checked
     assert {f.name: f.read_bytes() for f in out.iterdir() if f.is_file()} == before
+    # the same scene beside the moved mesh resumes
+    q = write(tmp_path / "b", text)
+    assert main(["run", str(q), "--out", str(out), "--resume", "-q", "--set", "output.pictures=false"]) == 0
 
 
 def test_mesh_file_with_a_defect_is_a_scene_error(tmp_path):

@@ -654,3 +654,31 @@ def test_unresolved_seed_is_warned_and_negative_c_star_refused(tmp_path, capsys)
     assert "narrower than the mesh resolves" in capsys.readouterr().err
     assert run("default", tmp_path / "neg", overrides=["mesh.n_vertices=150", "growth.c_star=-0.1"]) == 2
     assert "c_star" in capsys.readouterr().err
+
+
+def test_a_static_run_stopped_by_an_error_reports_its_accepted_state(tmp_path, monkeypatch):
+    """The error comes in the second load increment, after the model was set to the trial load:
+    the summary's energy is that of the accepted state at its own load, not at the trial one."""
+    import femshell.solvers.newton as newton
+    from femshell.scene import make_mesh
+    from femshell.scene.build import shell_parts
+
+    real, calls = newton.minimize, {"n": 0}
+
+    def failing(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise IndexError("simulated bug")
+        return real(*a, **k)
+
+    monkeypatch.setattr(newton, "minimize", failing)
+    over = ["mesh.edge_length=0.5", "solver.steps=8"]
+    out = tmp_path / "run"
+    assert run("cantilever-roll-up", out, overrides=over) == 1
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and s["final"]["load_factor"] == pytest.approx(0.125)
+    state, _ = load_checkpoint(out / "checkpoint.npz")
+    sc = load_scene("cantilever-roll-up", over)
+    model = shell_parts(sc, make_mesh(sc)).model
+    model.load_factor = float(state["mu"])
+    assert s["final"]["energy"] == pytest.approx(model.energy(np.asarray(state["u"])), rel=1e-9)

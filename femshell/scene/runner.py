@@ -35,9 +35,13 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
   static solver the resumed run is bit for bit the uninterrupted one; a continuation
   restarts its branch from the last accepted point along the secant (same branch, not the
   same steps).
+  The mesh file may move (its content is checked by a fingerprint instead of its path).
+* ``--max-steps N`` (and, for the time loop, ``solver.max_steps``) pauses an invocation after
+  N accepted steps (status "paused"); ``--resume`` continues.
 * A step that fails (Newton diverges, dt below dt_min, the continuation's step below
   ds_min) ends the run with status "failed", the message, a checkpoint of the last
-  accepted state and exit code 1. Nothing non-finite is ever written.
+  accepted state and exit code 1; so does an unexpected error (a bug: its traceback is
+  printed for the report). Nothing non-finite is ever written.
 
 Exit codes: 0 finished (or paused by ``--max-steps``), 1 failed, 2 bad input, 130 interrupted.
 """
@@ -405,9 +409,7 @@ class BaseRunner:
     def loop(self):
         """Step until finished (subclasses whose solver drives the loop override this)."""
         while not self.finished():
-            if self.max_steps is not None and self.steps_this_run >= self.max_steps:
-                self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps ({self.max_steps_from}); "
-                                                       "continue with --resume")
+            if self.step_limit_reached():
                 return
             with step_scope():              # a Ctrl-C once the step commits waits for its frame and checkpoint
                 text, frac = self.advance()
@@ -415,6 +417,18 @@ class BaseRunner:
                     self.accepted(text, frac)
 
     # --- shared
+    def step_limit_reached(self) -> bool:
+        """True (and the run paused) once this invocation has taken its --max-steps / solver.max_steps."""
+        if self.max_steps is None or self.steps_this_run < self.max_steps:
+            return False
+        self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps ({self.max_steps_from}); "
+                                               "continue with --resume")
+        return True
+
+    def settle(self):
+        """Back to the last accepted state's parameter after a step was abandoned midway (an error,
+        Ctrl-C), so that the summary's measures are of that state (subclasses with a parameter)."""
+
     def accepted(self, text, fraction):
         self.step += 1
         self.steps_this_run += 1
@@ -478,10 +492,12 @@ class BaseRunner:
                 code = 1
             except Exception as exc:        # a bug, not bad input: keep the last accepted state and say so
                 traceback.print_exc()
+                self.settle()
                 self.status, self.message = "failed", (f"internal error after step {self.step} ({type(exc).__name__}: "
                                                        f"{exc}); please report it with the traceback above")
                 code = 1
             except KeyboardInterrupt:
+                self.settle()
                 self.status = "interrupted"
                 # the scene stored in --out already holds any --set overrides of this run
                 self.message = f"interrupted after step {self.step}; continue with: femshell run --out {rdp} --resume"
@@ -827,6 +843,9 @@ class StaticRunner(BaseRunner):
         self.newton = dict(rtol=so["newton_rtol"] or 1e-8, max_iter=so["newton_max_iter"] or 60,
                            backend=so["backend"], stable=so["stable"])
 
+    def settle(self):
+        self._set(self.mu)
+
     def _set(self, mu):
         gr = self.scene["growth"]
         self.parts.model.load_factor = mu
@@ -971,6 +990,9 @@ class ContinuationRunner(BaseRunner):
     """Pseudo-arclength continuation (femshell.solvers.continuation), one frame per accepted point."""
 
     kind = "continuation"
+
+    def settle(self):
+        self.problem.set_parameter(self.lam)
 
     def _setup(self):
         from ..solvers.continuation import GrowthParameter, LoadParameter
@@ -1152,9 +1174,7 @@ class ContinuationRunner(BaseRunner):
     # --- the loop: continuation() drives, the callback reports
     def loop(self):
         while self.phase != "done":
-            if self.max_steps is not None and self.steps_this_run >= self.max_steps:
-                self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps ({self.max_steps_from}); "
-                                                       "continue with --resume")
+            if self.step_limit_reached():
                 return
             if self.phase == "primary":
                 self._segment(primary=True)
@@ -1261,8 +1281,7 @@ class ContinuationRunner(BaseRunner):
         self.segments += self.cur_rows
         self.cur_rows = []
         if branch.status == "callback":       # --max-steps
-            self.status, self.message = "paused", (f"stopped after {self.steps_this_run} steps ({self.max_steps_from}); "
-                                                   "continue with --resume")
+            self.step_limit_reached()
             self.resume_tangent = None if self.prev is None else (self.u - self.prev[0], self.lam - self.prev[1])
             return
         self.branch_status[label] = {"status": branch.status, "message": branch.message}
@@ -1428,8 +1447,8 @@ def _scene_differences(old: dict, new: dict) -> list:
         a, b = old.get(sec), new.get(sec)
         if isinstance(a, dict) and isinstance(b, dict):
             for k in sorted(set(a) | set(b)):
-                if (sec, k) in RESUMABLE_CHANGES:
-                    continue
+                if (sec, k) in RESUMABLE_CHANGES or (sec, k) == ("mesh", "file"):
+                    continue                # a mesh file may move: the checkpoint's fingerprint checks its content
                 if a.get(k) != b.get(k):
                     diffs.append(f"[{sec}] {k}: {a.get(k)!r} in the run, {b.get(k)!r} now")
         elif a != b:

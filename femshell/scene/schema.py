@@ -833,11 +833,8 @@ def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None, ch
                 continue
             if p == "growth.strain" and not v > -1.0:
                 ck.err(f"[solver] {key} = {_fmt(v)} is out of range for growth.strain: > -1 (a stretch 1 + g > 0)")
-            if p == "growth.inner_radius":
-                outer = mesh.get("radius") if mesh.get("kind") == "disk" else None
-                if not v > 0 or (outer is not None and not v < outer):
-                    ck.err(f"[solver] {key} = {_fmt(v)} is out of range for growth.inner_radius: 0 < R2"
-                           + (f" < {_fmt(outer)} (the disk's radius)" if outer is not None else ""))
+            if p == "growth.inner_radius" and not v > 0:
+                ck.err(f"[solver] {key} = {_fmt(v)} is out of range for growth.inner_radius: 0 < R2")
         if stop is None and solver.get("max_steps") is None:
             ck.err("[solver] give stop (or max_steps) for the continuation")
         for k in solver.get("stop_at") or []:

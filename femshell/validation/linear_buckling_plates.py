@@ -200,8 +200,9 @@ def _prestress_rows(n_vertices):
 
 
 def _tolerance(tol, quantity):
-    """A tolerance for ``quantity``: ``tol`` itself, or its entry when a dict (a quantity it lacks: 1e-2)."""
-    return tol.get(quantity, 1e-2) if isinstance(tol, dict) else tol
+    """A tolerance for ``quantity``: ``tol`` itself, or its entry when a dict (a KeyError for a quantity
+    it lacks, rather than a silent default)."""
+    return tol[quantity] if isinstance(tol, dict) else tol
 
 
 def _clamped_rows(levels, tol_last, tol_mode=True):
