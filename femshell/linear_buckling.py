@@ -45,7 +45,8 @@ vertices: :attr:`BucklingResult.info` reports the relative coupling (``rigid_lea
 order of that dependence, not a bound. Measured on the free disk R1 = 10, R2 = 2 (h = 2,
 nu = 0.5, first three modes): 3.8e-3, 2.0e-3, 1.0e-3 at 328, 542, 1 101 vertices, falling with
 the mesh size; randomly chosen pinned rim vertices moved mu by up to 1 % at 542 vertices
-(about five times the leak; as much as the mesh error there), interior ones by more. A non-equilibrated N with a free edge would be meaningless.
+(about five times the leak; as much as the mesh error there), interior ones by more. A
+non-equilibrated N with a free edge would be meaningless.
 
 Eigen solver
 ------------

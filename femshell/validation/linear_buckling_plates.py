@@ -55,7 +55,7 @@ FULL_VERTICES = (800, 1600, 3200, 6400, 12800, 25600, 51200)
 TOL_QUICK = {"k2 clamped n=0": 1e-3, "k2 clamped n=1": 5e-3, "k2 clamped n=2": 1e-2, "k2 clamped n=0 m=2": 5e-3,
              "k2 clamped n=3": 1e-2, "k2 simply supported n=0": 5e-4, "k SS rectangle a/b=1": 3e-3,
              "k SS rectangle a/b=2": 5e-3}
-TOL_FINE = 1e-3         # k^2 at 51 200 vertices (errors 1e-5 .. 2e-4)
+TOL_FINE = dict.fromkeys(TOL_QUICK, 1e-3)    # k^2 at 51 200 vertices (errors 1e-5 .. 2e-4)
 DISK_R1 = 20.0
 DISK_EPS = 0.5
 DISK_NU = 0.5
@@ -199,12 +199,6 @@ def _prestress_rows(n_vertices):
     return rows
 
 
-def _tolerance(tol, quantity):
-    """A tolerance for ``quantity``: ``tol`` itself, or its entry when a dict (a KeyError for a quantity
-    it lacks, rather than a silent default)."""
-    return tol[quantity] if isinstance(tol, dict) else tol
-
-
 def _clamped_rows(levels, tol_last, tol_mode=True):
     ref = clamped_disk_reference()
     per_q, rows = {}, []
@@ -215,7 +209,7 @@ def _clamped_rows(levels, tol_last, tol_mode=True):
         for kref, n, m, val, nss in matched:
             q = f"k2 clamped n={n}" + (" m=2" if m == 2 else "")
             name = q if len(levels) == 1 else f"{q} @ level {L}"
-            r = Row(name, val, kref, _tolerance(tol_last, q) if last else None, nvert, wall)
+            r = Row(name, val, kref, tol_last[q] if last else None, nvert, wall)
             rows.append(r)
             per_q.setdefault(q, []).append(r)
             if last and tol_mode:
@@ -231,7 +225,7 @@ def _ss_rows(levels, tol_last):
         k2, ns, nvert, wall, _ = _disk_k2(nv, "simply_supported", k=1)
         last = L == len(levels) - 1
         name = "k2 simply supported n=0" + ("" if len(levels) == 1 else f" @ level {L}")
-        r = Row(name, k2[0], kref, _tolerance(tol_last, "k2 simply supported n=0") if last else None, nvert, wall)
+        r = Row(name, k2[0], kref, tol_last["k2 simply supported n=0"] if last else None, nvert, wall)
         rows.append(r)
         per_q.setdefault("k2 simply supported n=0", []).append(r)
         if last:
@@ -250,7 +244,7 @@ def _rect_rows(levels, tol_last):
             k, half, nvert, wall = _rectangle_k(aspect, nv)
             last = L == len(levels) - 1
             r = Row(q if len(levels) == 1 else f"{q} @ level {L}", k, kref,
-                    _tolerance(tol_last, q) if last else None, nvert, wall)
+                    tol_last[q] if last else None, nvert, wall)
             rows.append(r)
             per_q.setdefault(q, []).append(r)
             if last:
