@@ -4,7 +4,7 @@ import signal
 
 import pytest
 
-from femshell._interrupts import committing, step_scope
+from femshell._interrupts import committing, interrupt_handler, interruptible, raise_if_interrupted, step_scope
 
 
 def test_a_signal_in_a_commit_is_raised_at_the_end_of_the_step():
@@ -73,3 +73,27 @@ def test_a_ctrl_c_while_the_command_exits_prints_no_traceback():
             "console_main()\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and "KeyboardInterrupt" not in r.stderr, r.stderr
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")   # the point: Python drops it
+def test_an_interrupt_dropped_in_a_finalizer_is_raised_at_the_next_check():
+    import weakref
+
+    class Held:
+        pass
+
+    before = signal.getsignal(signal.SIGTERM)
+    with interruptible():
+        assert signal.getsignal(signal.SIGTERM) is interrupt_handler
+        raise_if_interrupted()                        # nothing arrived
+        held = Held()
+        weakref.finalize(held, signal.raise_signal, signal.SIGTERM)
+        del held                                      # the KeyboardInterrupt is raised there and dropped
+        with pytest.raises(KeyboardInterrupt):
+            raise_if_interrupted()
+        raise_if_interrupted()                        # raised once
+        with interruptible():                         # nested: the same handlers
+            with pytest.raises(KeyboardInterrupt):
+                signal.raise_signal(signal.SIGINT)
+    assert signal.getsignal(signal.SIGTERM) is before
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -122,6 +122,25 @@ def test_pardiso_refactor_reuses_analysis():
         f.solve(b)
 
 
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pardiso unavailable")
+def test_a_collected_pardiso_factor_is_freed_at_the_next_analysis():
+    # not in the garbage collector's callback, where a Ctrl-C's exception would be dropped
+    from femshell.solvers import linear
+
+    A = laplacian_2d(30)
+    linear._free_collected()
+    f = factorize(A, "spd", "pardiso")
+    handle = f._impl.solver
+    del f
+    assert [id(s) for s in linear._COLLECTED] == [id(handle)]
+    g = factorize(A, "spd", "pardiso")
+    assert linear._COLLECTED == []
+    b = np.ones(A.shape[0])
+    assert rel_residual(A, g.solve(b), b) < 1e-12
+    g.free()                                      # an explicit free frees at once
+    assert linear._COLLECTED == []
+
+
 # Run in a child process: MKL reads MKL_THREADING_LAYER once, when it is loaded.
 _THREADED_CHILD = """
 import numpy as np, scipy.sparse as sp

@@ -599,6 +599,54 @@ def test_an_overwrite_stopped_while_it_starts_keeps_the_earlier_run(tmp_path):
     assert _tree(out) == before
 
 
+def _sigterm_in_a_finalizer():
+    """A SIGTERM whose handler runs inside a garbage-collector callback, where Python drops its exception."""
+    import weakref
+
+    class Held:
+        pass
+
+    held = Held()
+    weakref.finalize(held, signal.raise_signal, signal.SIGTERM)
+    del held
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")   # the point: Python drops it
+def test_a_stop_dropped_in_a_finalizer_still_stops_the_run(tmp_path, monkeypatch):
+    """A SIGTERM raised inside a finalizer (a PARDISO factor being freed) is printed and dropped by
+    Python; the run still stops, at the next step boundary, and an overwrite keeps the earlier run."""
+    from femshell.scene.runner import TimeRunner
+
+    out = tmp_path / "run"
+    assert run("default", out, overrides=SPHERE_TINY) == 0
+    before = _tree(out)
+    initialise = TimeRunner.initialise
+
+    def stopped_while_starting(self):
+        initialise(self)
+        _sigterm_in_a_finalizer()
+
+    monkeypatch.setattr(TimeRunner, "initialise", stopped_while_starting)
+    assert run("default", out, extra=["--overwrite"], overrides=SPHERE_TINY) == 130
+    assert _tree(out) == before
+    # once started: the run stops before its next step, resumable
+    monkeypatch.setattr(TimeRunner, "initialise", initialise)
+    advance = TimeRunner.advance
+
+    def stopped_in_step_one(self):
+        result = advance(self)
+        if self.step == 0:
+            _sigterm_in_a_finalizer()
+        return result
+
+    monkeypatch.setattr(TimeRunner, "advance", stopped_in_step_one)
+    assert run("default", out, extra=["--overwrite"], overrides=SPHERE_TINY) == 130
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["steps"] == 1
+    monkeypatch.setattr(TimeRunner, "advance", advance)
+    assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY) == 0
+
+
 def test_resume_with_another_set_names_the_command_that_resumes(tmp_path, capsys):
     out = tmp_path / "run"
     assert run("default", out, extra=["--max-steps", "1"], overrides=SPHERE_TINY) == 0

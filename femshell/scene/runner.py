@@ -26,7 +26,8 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
   stop after writing a checkpoint of the last accepted state and a summary with status
   "interrupted" (exit code 130). One that arrives once a step has begun to commit waits
   until that step, its frame and its checkpoint are written (:mod:`femshell._interrupts`;
-  a few seconds at most at 25 000 vertices; ``kill -9`` does not wait).
+  a few seconds at most at 25 000 vertices; ``kill -9`` does not wait). One whose exception
+  Python drops (raised in a garbage-collector callback) stops the run before its next step.
 * ``--resume`` continues from the checkpoint; frames written after it are dropped and
   written again. The scene must be the one in ``DIR/scene.toml`` except for
   ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop``,
@@ -53,7 +54,6 @@ import math
 import os
 import re
 import shutil
-import signal
 import sys
 import time
 import traceback
@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import io as fio
-from .._interrupts import committing, step_scope
+from .._interrupts import committing, interruptible, raise_if_interrupted, step_scope
 from .build import load_scene, make_mesh, plan, shell_parts, stretch_field, time_loop
 from .schema import Scene, SceneError, dump_toml, parse_scene, validate
 
@@ -411,6 +411,7 @@ class BaseRunner:
         while not self.finished():
             if self.step_limit_reached():
                 return
+            raise_if_interrupted()
             with step_scope():              # a Ctrl-C once the step commits waits for its frame and checkpoint
                 text, frac = self.advance()
                 with committing():
@@ -468,6 +469,7 @@ class BaseRunner:
             self.newton_total = int(meta.get("newton_total", 0))
             self.resumes = int(meta.get("resumes", 0)) + 1
             self.restore(state, meta)
+            raise_if_interrupted()
             self.writer.truncate_after(float(meta["series_time"]))
             self.last_frame_step = self.last_ckpt_step = self.step
             self.rd.start(self.scene)
@@ -475,14 +477,12 @@ class BaseRunner:
         else:
             self._thickness_warning()
             self.initialise()
+            raise_if_interrupted()          # a stop that arrived in a finalizer: as if on time, nothing written
             self.write_frame()
             self.checkpoint()
             self.rd.start(self.scene)
         code = 0
-        old_term = None
-        try:
-            with contextlib.suppress(ValueError):   # not in the main thread: no SIGTERM handler
-                old_term = signal.signal(signal.SIGTERM, signal.default_int_handler)
+        with interruptible():
             try:
                 self.loop()
                 if self.status == "running":
@@ -532,9 +532,6 @@ class BaseRunner:
             if late and self.status in FINAL and self.out["pictures"]:
                 self.p.failure(f"warning: interrupted while writing the results: pictures skipped (femshell render "
                                f"{rdp} makes them)")
-        finally:
-            if old_term is not None:
-                signal.signal(signal.SIGTERM, old_term)
         self.report(code)
         return code
 
@@ -1211,6 +1208,7 @@ class ContinuationRunner(BaseRunner):
         self._sp_seen = 0
 
         def callback(branch, row):
+            raise_if_interrupted()
             with committing():              # the branch's point, its row, frame and checkpoint together
                 return _accept_point(branch, row)
 
@@ -1567,15 +1565,9 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         for w in check_mesh(mesh).warnings:     # a sliver or a poor triangle the run may stumble on
             print(f"warning: mesh {mesh.name}: {w}", file=sys.stderr if quiet else stream)
     progress = Progress(stream, interval=sc["output"]["progress_interval"], quiet=quiet)
-    old_term = None
-    with contextlib.suppress(ValueError):   # not in the main thread: no handler
-        # SIGTERM as Ctrl-C from here on: a run stopped while it starts still puts an earlier run back
-        old_term = signal.signal(signal.SIGTERM, signal.default_int_handler)
-    try:
+    # SIGTERM as Ctrl-C from here on: a run stopped while it starts still puts an earlier run back
+    with interruptible():
         return _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose)
-    finally:
-        if old_term is not None:
-            signal.signal(signal.SIGTERM, old_term)
 
 
 def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose):

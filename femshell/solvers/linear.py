@@ -326,6 +326,18 @@ def _free_pardiso(solver):
         pass
 
 
+#: PARDISO handles of factorisations the garbage collector took: freed at the next analysis, not
+#: in the collector's callback. A SIGTERM or Ctrl-C whose KeyboardInterrupt is raised inside such a
+#: callback is printed and dropped by Python; phase −1 on a large factor takes milliseconds (1-7 ms
+#: at 4 000 vertices, measured), long enough to lose a stop that way; an append takes none.
+_COLLECTED: list = []
+
+
+def _free_collected():
+    while _COLLECTED:
+        _free_pardiso(_COLLECTED.pop())
+
+
 class _Pardiso:
     def __init__(self, kind, matching=True):
         self.mtype = 2 if kind == "spd" else -2
@@ -385,6 +397,7 @@ class _Pardiso:
         n = U.shape[0]
         b = np.zeros((n, 1))
         if analyse:
+            _free_collected()
             if self.analysed:
                 self.solver.free_memory(everything=True)
             self.solver.perm = np.zeros(n, np.int32)
@@ -395,7 +408,7 @@ class _Pardiso:
             self.perm = self.solver.perm.astype(np.int64) - 1
             self.analysed = True
             if self._finalizer is None:
-                self._finalizer = weakref.finalize(self, _free_pardiso, self.solver)
+                self._finalizer = weakref.finalize(self, _COLLECTED.append, self.solver)
         else:
             t_an = 0.0
         t0 = time.perf_counter()
@@ -437,8 +450,9 @@ class _Pardiso:
 
     def free(self):
         if self._finalizer is not None:
-            self._finalizer()
+            self._finalizer.detach()
             self._finalizer = None
+            _free_pardiso(self.solver)
         self.analysed = False
 
 
