@@ -58,7 +58,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ._checks import finite, finite_vector, triangle_array, vertex_indices
+from ._checks import finite, finite_vector, integer, triangle_array, vertex_indices
 from .geometry import triangle_areas
 
 __all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeasures", "find_spots",
@@ -80,10 +80,7 @@ def _mesh(points, triangles):
 
 def _count(name, v, lo, hi):
     """An integer argument in [lo, hi] (a whole float such as 18.0 is accepted)."""
-    x = finite(name, v)
-    if x != int(x) or not lo <= x <= hi:
-        raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
-    return int(x)
+    return integer(name, v, lo, f"an integer in [{lo}, {hi}]", hi)
 
 
 def _field(values, n, name="values"):

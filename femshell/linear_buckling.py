@@ -99,6 +99,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ._checks import integer
+
 __all__ = ["membrane_prestress", "buckling_loads", "BucklingResult", "azimuthal_wavenumber",
            "mode_wavenumber", "critical_growth_strain", "CriticalGrowth", "critical_inner_radius",
            "CriticalRadius", "bending_stiffness"]
@@ -161,12 +163,6 @@ def _poisson(nu) -> float:
     if not -1.0 < v <= 0.5:
         raise ValueError(f"nu must be in (-1, 0.5], got {nu!r}")
     return v
-
-
-def _count(name, value, lo):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-        raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
-    return int(value)
 
 
 def _at_quadrature(values, basis):
@@ -477,7 +473,7 @@ def buckling_loads(points2d, triangles, N, E=1.0, nu=0.3, thickness=1.0, D=None,
     m = mesh.t.shape[1]
     basis = Basis(mesh, ElementTriMorley())
     nu = _poisson(nu)
-    k, extra = _count("k", k, 1), _count("extra", extra, 0)
+    k, extra = integer("k", k, 1), integer("extra", extra, 0)
     if D is None:
         Dm = bending_stiffness(_per_triangle(E, m, "E", positive=True),
                                nu, _per_triangle(thickness, m, "thickness", positive=True))
@@ -760,7 +756,7 @@ def critical_growth_strain(R1, R2, h, g0=0.5, nu=0.5, E=1.0, thin_grown=True, bc
             raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
     if not R2 < R1:
         raise ValueError(f"R2 must be < R1, got R2 = {R2}, R1 = {R1}")
-    _count("resolution", resolution, 1)
+    resolution = integer("resolution", resolution, 1)
     if mesh is None:
         mesh = _disk_mesh(R1, R2, resolution, edge_length, inner_edge_length, seed)
     if hasattr(mesh, "points"):
@@ -847,7 +843,7 @@ def critical_inner_radius(R1, h, g0=0.5, n=None, nu=0.5, E=1.0, thin_grown=True,
     target n; doubled if no mode with n waves is among them).
     """
     t0 = time.perf_counter()
-    _count("maxiter", maxiter, 1)
+    maxiter = integer("maxiter", maxiter, 1)
     kk = k if k is not None else (4 if n is None else 8 + 6 * n)
     converged = False
     x = np.log(R2_start if R2_start is not None else h)

@@ -248,7 +248,7 @@ def test_options_and_callbacks():
     def follow(**kw):
         return continuation(Pitchfork(), np.zeros(2), 0.0, ds=0.1, detect=False, log=None, **kw)
 
-    for kw, words in (({"grow": np.nan}, "grow must be a number"), ({"grow": 0.5}, "grow must be"),
+    for kw, words in (({"grow": np.nan}, "grow must be a finite number"), ({"grow": 0.5}, "grow must be"),
                       ({"n_eigs": 10**6}, r"n_eigs must be an integer in \[0, 1000\]"),
                       ({"max_steps": 2.5}, "max_steps must be an integer"),
                       ({"max_corrector_iterations": -1}, "max_corrector_iterations"),
@@ -298,8 +298,8 @@ def test_bad_arguments_and_a_singular_start_are_named():
                       ({"lam0": np.nan}, "lam0 must be a finite number"),
                       ({"lam_stop": "one"}, "lam_stop must be a number, got 'one'"),
                       ({"parameter_scale": "big"}, "parameter_scale must be a number"),
-                      ({"cluster_tol": np.nan}, "cluster_tol must be a number in"),
-                      ({"dip_tol": -1}, r"dip_tol must be a number in \[0, 1\]"),
+                      ({"cluster_tol": np.nan}, "cluster_tol must be a finite number in"),
+                      ({"dip_tol": -1}, r"dip_tol must be a finite number in \[0, 1\]"),
                       ({"problem": Fold(), "u0": np.ones(2)}, r"gradient\(u\) returned shape \(1,\) for 2 unknowns")):
         with pytest.raises(ValueError, match=words):
             follow(**kw)

@@ -123,7 +123,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._checks import finite
+from .._checks import finite, integer
 from .linear import LinearSolverError, factorize
 from .newton import NewtonError, check_unknowns, minimize
 
@@ -832,17 +832,15 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
         raise ValueError(f"need 0 < ds_min <= ds <= ds_max < inf, got {ds_min}, {ds}, {ds_max}")
     if direction not in (1, -1):
         raise ValueError(f"direction must be +1 or -1, got {direction}")
-    for name, v, lo, hi in (("grow", grow, 1.0, 100.0), ("max_turn_deg", max_turn_deg, 1e-6, 180.0),
-                            ("rtol", rtol, 0.0, 1.0), ("atol", atol, 0.0, math.inf), ("xtol", xtol, 0.0, 1.0),
-                            ("locate_tol", locate_tol, 0.0, math.inf), ("fd_step", fd_step, 1e-14, 0.1),
-                            ("cluster_tol", cluster_tol, 0.0, 1.0), ("dip_tol", dip_tol, 0.0, 1.0)):
-        if not (isinstance(v, (int, float, np.integer, np.floating)) and lo <= v <= hi and not math.isnan(v)):
-            raise ValueError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
-    for name, v, lo, hi in (("max_steps", max_steps, 0, 10**7), ("n_eigs", n_eigs, 0, 1000),
-                            ("max_corrector_iterations", max_corrector_iterations, 1, 1000),
-                            ("fast_iterations", fast_iterations, 0, 1000)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
-            raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+    grow, max_turn_deg, rtol, atol, xtol, locate_tol, fd_step, cluster_tol, dip_tol = (
+        finite(name, v, lo, hi) for name, v, lo, hi in (
+            ("grow", grow, 1, 100), ("max_turn_deg", max_turn_deg, 1e-6, 180), ("rtol", rtol, 0, 1),
+            ("atol", atol, 0, None), ("xtol", xtol, 0, 1), ("locate_tol", locate_tol, 0, None),
+            ("fd_step", fd_step, 1e-14, 0.1), ("cluster_tol", cluster_tol, 0, 1), ("dip_tol", dip_tol, 0, 1)))
+    max_steps, n_eigs, max_corrector_iterations, fast_iterations = (
+        integer(name, v, lo, f"an integer in [{lo}, {hi}]", hi) for name, v, lo, hi in (
+            ("max_steps", max_steps, 0, 10**7), ("n_eigs", n_eigs, 0, 1000),
+            ("max_corrector_iterations", max_corrector_iterations, 1, 1000), ("fast_iterations", fast_iterations, 0, 1000)))
     n_eigs = min(n_eigs, n)   # a table column per eigenvalue: no more than there are
     stop_at = (stop_at,) if isinstance(stop_at, str) else tuple(stop_at)
     bad = set(stop_at) - {"fold", "branch"}
