@@ -369,7 +369,7 @@ def test_load_stepping_from_a_load_factor_of_zero():
     with pytest.raises(ValueError, match=f"u0 must be a vector of the problem's {model.n_free} free unknowns"):
         minimize(model, u0[:-1], log=None)
     for kw, words in (({"max_iter": -1}, "max_iter must be an integer >= 0"), ({"max_iter": 2.7}, "max_iter"),
-                      ({"rtol": np.nan}, "rtol must be a finite number >= 0"), ({"atol": -1.0}, "atol must be"),
+                      ({"rtol": np.nan}, r"rtol must be a finite number in \[0, inf\), got nan"), ({"atol": -1.0}, "atol must be"),
                       ({"stall": -1}, "stall must be an integer >= 1"), ({"residual_scale": -1.0}, "residual_scale")):
         with pytest.raises(ValueError, match=words):
             minimize(model, u0, log=None, **kw)

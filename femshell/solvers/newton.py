@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .._checks import integer
+from .._checks import finite, integer
 from .linear import LinearSolverError, Refactorizer, smallest_eigenvalues
 
 
@@ -116,20 +116,15 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         cut its step (a time stepping) gains from stopping early; None: never.
     """
     u = check_unknowns(problem, u0)
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
-        raise ValueError(f"max_iter must be an integer >= 0, got {max_iter!r}")
-    if stall not in (None, False) and (isinstance(stall, bool) or not isinstance(stall, (int, np.integer))
-                                       or stall < 1):
-        raise ValueError(f"stall must be an integer >= 1 (or None/False: never), got {stall!r}")
-    if isinstance(quasi_newton, bool) or not isinstance(quasi_newton, (int, np.integer)) or quasi_newton < 0:
-        raise ValueError(f"quasi_newton must be an integer >= 0, got {quasi_newton!r}")
+    max_iter, quasi_newton = integer("max_iter", max_iter, 0), integer("quasi_newton", quasi_newton, 0)
+    if stall not in (None, False):
+        stall = integer("stall", stall, 1, "an integer >= 1 (or None/False: never)")
     if factorizers is not None and not (isinstance(factorizers, (tuple, list)) and len(factorizers) == 2
                                         and all(isinstance(f, Refactorizer) for f in factorizers)):
         raise ValueError(f"factorizers must be a pair of Refactorizer (or None), got {factorizers!r}")
-    for name, v in (("rtol", rtol), ("atol", atol)) + ((("residual_scale", residual_scale),)
-                                                      if residual_scale is not None else ()):
-        if not (isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v) and v >= 0):
-            raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+    rtol, atol = finite("rtol", rtol, 0), finite("atol", atol, 0)
+    if residual_scale is not None:
+        residual_scale = finite("residual_scale", residual_scale, 0)
     if max_step is not None and not (isinstance(max_step, (int, float, np.integer, np.floating))
                                      and not isinstance(max_step, bool) and max_step > 0):
         raise ValueError(f"max_step must be a number > 0 (or None), got {max_step!r}")
