@@ -115,7 +115,7 @@ def _parser():
     d.add_argument("--field", help="field to colour by (default c, else the first scalar field)")
     d.add_argument("--series", help="the time series NAME.pvd to render (default series.pvd, else the only one)")
     d.add_argument("--every", type=int, default=1, help="render every N-th frame (the last one always)")
-    d.add_argument("--fps", type=_positive("--fps"), default=5.0, help="movie frames per second")
+    d.add_argument("--fps", type=_positive("--fps"), default=5.0, help="movie frames per second (at most 50 for a GIF)")
     d.add_argument("--cmap", default="viridis", help="matplotlib colour map")
     d.add_argument("--no-movie", action="store_true", help="pictures only")
     return p
@@ -261,6 +261,9 @@ def _cmd_render(args):
     if args.every < 1:
         raise ValueError(f"--every must be >= 1, got {args.every}")
     if Path(args.dir).is_dir():
+        from .io import find_series
+
+        find_series(Path(args.dir), args.series)     # a directory that is no run: said before pictures/ is made
         check_writable_dir(Path(args.dir) / "pictures", "pictures directory")
     t0 = time.perf_counter()
     paths = render_run(args.dir, field=args.field, series=args.series, every=args.every, movie=not args.no_movie,

@@ -362,7 +362,8 @@ def read_pvd(path) -> list[tuple[float, Path]]:
         f = ds.get("file")
         if not f:
             raise ValueError(f"{path}: DataSet at time {t!r} has no file attribute")
-        out.append((t, (path.parent / f).resolve()))
+        # the directory resolved, not the file: a frame that is a symlink keeps its name in the run
+        out.append((t, Path(os.path.normpath(path.parent.resolve() / f))))
     return out
 
 
@@ -462,8 +463,8 @@ class TimeSeriesWriter:
                 if p.exists() and p.parent == self.out_dir.resolve():
                     kept.append((t, p.name))
                 else:
-                    warnings.warn(f"{self.pvd_path}: frame {p.name} at time {t!r} is missing; dropped "
-                                  "from the series", RuntimeWarning, stacklevel=2)
+                    warnings.warn(f"{self.pvd_path}: frame {p.name} at time {t!r} is missing or outside "
+                                  f"{self.out_dir}; dropped from the series", RuntimeWarning, stacklevel=2)
             self.entries = kept
             self._write_index()
             self._remove_orphans()

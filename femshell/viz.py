@@ -31,6 +31,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
+import re
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
@@ -426,10 +427,13 @@ def _iter_frames(frames, n_frames):
             yield _frame_image(item)
 
 
-def _check_fps(fps):
-    # a GIF stores each frame's duration in 1/100 s in 16 bits: 0.002 fps (500 s a frame) is near that limit
-    if not (isinstance(fps, (int, float, np.integer, np.floating)) and 0.002 <= fps <= 1000):
-        raise ValueError(f"fps must be a number in [0.002, 1000] frames per second, got {fps!r}")
+def _check_fps(fps, ext=".gif"):
+    # a GIF stores each frame's duration in 1/100 s in 16 bits: 0.002 fps (500 s a frame) is near that
+    # limit, and viewers play frames shorter than 2/100 s at 1/10 s, so a GIF's rate is at most 50 fps
+    hi = 50 if ext == ".gif" else 1000
+    if not (isinstance(fps, (int, float, np.integer, np.floating)) and 0.002 <= fps <= hi):
+        raise ValueError(f"fps must be a number in [0.002, {hi}] frames per second{' for a GIF' if hi == 50 else ''}, "
+                         f"got {fps!r}")
 
 
 def render_movie(frames: Sequence | Iterable | Callable, path, fps: float = 5.0, *, n_frames: int | None = None,
@@ -442,7 +446,9 @@ def render_movie(frames: Sequence | Iterable | Callable, path, fps: float = 5.0,
     """
     path = Path(path)
     ext = path.suffix.lower()
-    _check_fps(fps)
+    if ext not in (".gif", ".mp4"):     # before any frame is computed
+        raise ValueError(f"movie format {ext or '(none)'} not supported; use .gif (or .mp4 with imageio-ffmpeg)")
+    _check_fps(fps, ext)
     it = _iter_frames(frames, n_frames)
     try:
         first = next(it)
@@ -467,26 +473,24 @@ def render_movie(frames: Sequence | Iterable | Callable, path, fps: float = 5.0,
                                    append_images=(to_palette(fit(im)) for im in it),
                                    duration=int(round(1000 / fps)), loop=loop, optimize=False, disposal=1)
         return atomic_write(path, write)
-    if ext == ".mp4":
-        try:
-            import imageio_ffmpeg
-        except ImportError:
-            raise RuntimeError("mp4 movies need the imageio-ffmpeg package (pip install imageio-ffmpeg); "
-                               "write a .gif instead") from None
-        w, h = size[0] + size[0] % 2, size[1] + size[1] % 2   # yuv420p needs even sizes
+    try:
+        import imageio_ffmpeg
+    except ImportError:
+        raise RuntimeError("mp4 movies need the imageio-ffmpeg package (pip install imageio-ffmpeg); "
+                           "write a .gif instead") from None
+    w, h = size[0] + size[0] % 2, size[1] + size[1] % 2   # yuv420p needs even sizes
 
-        def write(tmp):
-            gen = imageio_ffmpeg.write_frames(str(tmp), (w, h), fps=fps, pix_fmt_in="rgb24", macro_block_size=1)
-            gen.send(None)
-            try:
-                for im in itertools.chain([first], it):
-                    a = np.zeros((h, w, 3), np.uint8)
-                    a[:size[1], :size[0]] = np.asarray(fit(im))
-                    gen.send(a.tobytes())
-            finally:
-                gen.close()
-        return atomic_write(path, write)
-    raise ValueError(f"movie format {ext or '(none)'} not supported; use .gif (or .mp4 with imageio-ffmpeg)")
+    def write(tmp):
+        gen = imageio_ffmpeg.write_frames(str(tmp), (w, h), fps=fps, pix_fmt_in="rgb24", macro_block_size=1)
+        gen.send(None)
+        try:
+            for im in itertools.chain([first], it):
+                a = np.zeros((h, w, 3), np.uint8)
+                a[:size[1], :size[0]] = np.asarray(fit(im))
+                gen.send(a.tobytes())
+        finally:
+            gen.close()
+    return atomic_write(path, write)
 
 
 # ----------------------------------------------------------------------------- a whole run
@@ -519,7 +523,8 @@ def render_run(out_dir, field: str | None = None, *, series: str | None = None, 
     Reads ``out_dir``'s PVD/VTU time series (:func:`femshell.io.find_series`), writes
     a top view per frame (every ``every``-th frame, always including the last) coloured
     by ``field`` (default "c" when present, else the first scalar field, else z)
-    with one colour range over all frames, into ``out_dir/pictures/top_NNNNNN.png``;
+    with one colour range over all frames, into ``out_dir/pictures/top_NNNNNN.png``
+    (replacing the ``top_NNNNNN.png`` of an earlier rendering; other files there are kept);
     a side view of the last frame ``pictures/side_last.png`` (coloured by radius);
     and ``out_dir/movie.gif`` of the top views (at most 300 frames, subsampled evenly).
     Returns the written paths.
@@ -571,7 +576,7 @@ def render_run(out_dir, field: str | None = None, *, series: str | None = None, 
         tops.append(p)
         written.append(p)
     for old in pic_dir.glob("top_*.png"):   # pictures of an earlier rendering of a longer series
-        if old not in tops:
+        if old not in tops and re.fullmatch(r"top_\d{6}\.png", old.name):    # not a user's top_mine.png
             old.unlink()
     written.append(side_view(f.points, f.triangles, pic_dir / "side_last.png",
                              title=f"t = {f.time:.4g}", cmap=cmap))

@@ -172,6 +172,28 @@ def test_time_series_resume_truncates_to_checkpoint(tmp_path, square):
     assert [p.name for p in run_dir.glob("series_*.vtu")] == ["series_000000.vtu"]
 
 
+def test_a_resumed_series_keeps_frames_that_are_symlinks(tmp_path, square):
+    # a run directory assembled from links (to a copy elsewhere) is a run like any other
+    src, linked = tmp_path / "src", tmp_path / "linked"
+    w = TimeSeriesWriter(src, square)
+    for k, t in enumerate([0.0, 0.1, 0.2]):
+        w.write(t, point_data=_frame_fields(k)[0])
+    linked.mkdir()
+    for p in src.iterdir():
+        (linked / p.name).symlink_to(p)
+    w = TimeSeriesWriter(linked, square, resume=True)
+    assert w.times == [0.0, 0.1, 0.2]
+    assert sorted(p.name for p in linked.glob("series_*.vtu")) == ["series_000000.vtu", "series_000001.vtu",
+                                                                   "series_000002.vtu"]
+    # a frame outside the run directory is still dropped, and said to be
+    (linked / "series.pvd").unlink()
+    (linked / "series.pvd").write_text((src / "series.pvd").read_text().replace("series_000002.vtu",
+                                                                                "../src/series_000002.vtu"))
+    with pytest.warns(RuntimeWarning, match="series_000002.vtu at time 0.2 is missing or outside"):
+        w = TimeSeriesWriter(linked, square, resume=True)
+    assert w.times == [0.0, 0.1]
+
+
 # ----------------------------------------------------------------------------- checkpoints
 
 def _state(k):

@@ -286,6 +286,51 @@ def test_overwrite_and_render(uninterrupted, tmp_path, capsys):
     assert (uninterrupted / "movie.gif").stat().st_size > 1000
     assert sorted(p.name for p in (uninterrupted / "pictures").glob("top_*.png"))
     assert main(["render", str(tmp_path / "nothing")]) == 2
+    (tmp_path / "empty").mkdir()
+    assert main(["render", str(tmp_path / "empty")]) == 2
+    assert "no time series" in capsys.readouterr().err
+    assert not any((tmp_path / "empty").iterdir())        # no pictures/ made in a directory that is no run
+
+
+def test_temporaries_of_a_killed_writer_are_removed(tmp_path):
+    out = tmp_path / "run"
+    assert run("default", out, extra=["--max-steps", "1"], overrides=SPHERE_TINY) == 0
+    (out / "pictures").mkdir(exist_ok=True)
+    left = [out / ".checkpoint.npz.tmp-99999-0123abcd.npz", out / ".summary.json.tmp-99999-0123abcd.json",
+            out / "pictures" / ".top.png.tmp-99999-0123abcd.png"]
+    mine = [out / ".notes.txt.tmp-99999-0123abcd.txt", out / "pictures" / ".mine.png.tmp-99999-0123abcd.png"]
+    for p in left + mine:
+        p.write_text("x")
+    assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY) == 0
+    assert not any(p.exists() for p in left) and all(p.exists() for p in mine)
+
+
+def test_the_summary_is_written_before_the_pictures(tmp_path, monkeypatch):
+    """A renderer that dies natively (VTK without a usable OpenGL) must not leave a finished run
+    without its summary; the movie is coloured by output.picture_field."""
+    from femshell import viz
+    from femshell.scene.runner import TimeRunner
+
+    seen = {}
+    pictures, render_run = TimeRunner.pictures, viz.render_run
+
+    def pictures_after_the_summary(self):
+        seen["summary"] = json.loads((self.rd.path / "summary.json").read_text())
+        return pictures(self)
+
+    def recording_render_run(*args, **kwargs):
+        seen["render_run"] = kwargs
+        return render_run(*args, **kwargs)
+
+    monkeypatch.setattr(TimeRunner, "pictures", pictures_after_the_summary)
+    monkeypatch.setattr(viz, "render_run", recording_render_run)
+    out = tmp_path / "run"
+    assert run("default", out, overrides=SPHERE_TINY + ["output.movie=true", "output.picture_field=H"],
+               pictures=True) == 0
+    assert seen["summary"]["status"] == "t_final" and seen["summary"]["files"]["pictures"] == []
+    assert seen["render_run"]["field"] == "H" and seen["render_run"]["every"] == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert "movie.gif" in summary["files"]["pictures"] and "pictures/top.png" in summary["files"]["pictures"]
 
 
 def _files(out):

@@ -52,11 +52,17 @@ def test_render_run(tmp_path, small_sphere):
                      "pictures/side_last.png", "movie.gif"]
     with Image.open(tmp_path / "movie.gif") as g:
         assert g.n_frames == 3 and g.size == (800, 800)
+    # a rendering of fewer frames replaces the earlier top_NNNNNN.png, not a user's file there
+    (tmp_path / "pictures" / "top_mine.png").write_bytes(b"mine")
+    viz.render_run(tmp_path, every=2, movie=False)
+    assert sorted(p.name for p in (tmp_path / "pictures").glob("top_*.png")) == [
+        "top_000000.png", "top_000002.png", "top_mine.png"]
+    viz.render_run(tmp_path)
 
     # a broken frame, a bad colour map or frame rate: refused before any picture is replaced
     before = {p: p.read_bytes() for p in (tmp_path / "pictures").iterdir()}
     for kwargs, words in (({"cmap": "no-such-map"}, "unknown colour map 'no-such-map'"),
-                          ({"fps": 0.001}, r"fps must be a number in \[0.002, 1000\]")):
+                          ({"fps": 0.001}, r"fps must be a number in \[0.002, 50\]")):
         with pytest.raises(ValueError, match=words):
             viz.render_run(tmp_path, **kwargs)
     import meshio   # the writer refuses NaN points itself: break a frame file by hand
@@ -112,5 +118,12 @@ def test_render_movie_from_arrays_and_callback(tmp_path):
     p = viz.render_movie(lambda i: frames[i], tmp_path / "b.gif", n_frames=2)
     with Image.open(p) as g:
         assert g.n_frames == 2
+    made = []
     with pytest.raises(ValueError, match="not supported"):
-        viz.render_movie(frames, tmp_path / "c.avi")
+        viz.render_movie(lambda i: made.append(i) or frames[i], tmp_path / "c.avi", n_frames=2)
+    assert made == []                                  # refused before a frame was drawn
+    # a GIF stores frame times in 1/100 s and viewers slow frames under 2/100 s to 1/10 s
+    with pytest.raises(ValueError, match=r"fps must be a number in \[0.002, 50\] frames per second for a GIF"):
+        viz.render_movie(frames, tmp_path / "d.gif", fps=60)
+    with Image.open(viz.render_movie(frames, tmp_path / "e.gif", fps=50)) as g:
+        assert g.info["duration"] == 20

@@ -81,6 +81,8 @@ RUN_DIRS = ("pictures", "special")
 #: femshell's own files inside RUN_DIRS and its frames (a user's files there are left alone)
 RUN_DIR_FILES = re.compile(r"(top|side|bifurcation)(_\d{6}|_last)?\.png|(primary|switched)-\d+-\w+\.vtu")
 FRAME = re.compile(rf"{SERIES}_\d{{6}}\.vtu")
+#: a temporary file of femshell.io's atomic writes (.<target>.tmp-<pid>-<hex>[.ext]); a killed writer leaves it
+TEMPORARY = re.compile(r"\.(?P<target>.+)\.tmp-\d+-[0-9a-f]{8}(\.\w+)?")
 #: keys that may change between a run and its --resume
 RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop"),
                      ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol")}
@@ -202,6 +204,19 @@ class RunDir:
         if (self.path / REPLACED).is_dir():
             shutil.rmtree(self.path / REPLACED)
 
+    def remove_temporaries(self):
+        """Delete the temporary files that a writer killed mid-write left next to femshell's files
+        (a checkpoint's are megabytes on large meshes); called with the lock held."""
+        for root, own in [(self.path, lambda n: n in RUN_FILES or FRAME.fullmatch(n))] + [
+                (self.path / d, RUN_DIR_FILES.fullmatch) for d in RUN_DIRS]:
+            if not root.is_dir():
+                continue
+            for p in root.iterdir():
+                m = TEMPORARY.fullmatch(p.name)
+                if m and own(m["target"]) and p.is_file():
+                    with contextlib.suppress(OSError):
+                        p.unlink()
+
     @contextlib.contextmanager
     def lock(self):
         """One run per directory: ``DIR/.femshell.lock`` holds the pid; stale locks (dead pid) are taken over."""
@@ -236,6 +251,7 @@ class RunDir:
         os.write(fd, str(os.getpid()).encode())
         os.close(fd)
         try:
+            self.remove_temporaries()
             yield
         finally:
             with contextlib.suppress(FileNotFoundError):
@@ -503,7 +519,9 @@ class BaseRunner:
                 self.message = f"interrupted after step {self.step}; continue with: femshell run --out {rdp} --resume"
                 code = 130
             # the last accepted state, whatever happened. A Ctrl-C from here on lets the frame, checkpoint and
-            # summary be written (they must agree) and skips only the pictures
+            # summary be written (they must agree) and skips only the pictures. The summary comes before the
+            # pictures: a renderer that dies natively (VTK without a usable OpenGL) must not leave a finished
+            # run without one; it is written again with the pictures' names
             late = False
             try:
                 with committing():
@@ -511,6 +529,7 @@ class BaseRunner:
                         self.write_frame()
                     if self.last_ckpt_step != self.step:
                         self.checkpoint()
+                    self.write_summary([])
             except KeyboardInterrupt:
                 late = True
             pics = []
@@ -518,17 +537,17 @@ class BaseRunner:
                 try:
                     pics = self.pictures()
                     if self.out["movie"]:
-                        from ..viz import render_run
-                        pics += [p for p in render_run(rdp, cmap=self.out["cmap"]) if p.suffix in (".gif", ".mp4")]
+                        pics += self._movie()
                 except KeyboardInterrupt:
                     late = True
                 except Exception as exc:  # pictures must not lose a finished run
                     self.p.say(f"warning: pictures failed: {type(exc).__name__}: {exc}")
-            try:
-                with committing():
-                    self.write_summary(pics)
-            except KeyboardInterrupt:
-                late = True
+            if pics:
+                try:
+                    with committing():
+                        self.write_summary(pics)
+                except KeyboardInterrupt:
+                    late = True
             if late and self.status in FINAL and self.out["pictures"]:
                 self.p.failure(f"warning: interrupted while writing the results: pictures skipped (femshell render "
                                f"{rdp} makes them)")
@@ -537,6 +556,17 @@ class BaseRunner:
 
     def resume_text(self):
         return f"series time {self.series_time():.6g}"
+
+    def _movie(self) -> list:
+        """The run's movie (output.movie), coloured by output.picture_field where the frames hold it,
+        from at most MAX_MOVIE_FRAMES frames (a top view is drawn for each frame it uses)."""
+        from ..viz import MAX_MOVIE_FRAMES, render_run
+
+        pf = self.out["picture_field"]
+        field = pf if pf in self.out["fields"] else None
+        every = max(1, math.ceil(len(self.writer) / MAX_MOVIE_FRAMES))
+        paths = render_run(self.rd.path, field=field, every=every, cmap=self.out["cmap"])
+        return [p for p in paths if p.suffix in (".gif", ".mp4")]
 
     def _thickness_warning(self):
         """Kirchhoff–Love theory needs h ≪ the surface's size: say so where h is a quarter of it or more."""
