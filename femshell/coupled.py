@@ -142,15 +142,15 @@ class MechanochemicalModel:
     nu, E : Poisson ratio in (−1, 0.5] and Young's modulus (> 0; only scales energies).
     h0 : rest thickness (length, > 0).
     thickness_mode : "volume" (h̄ = h0/s², default) or "uniform" (h̄ = h0).
-    radius, k0 : natural curvature k0 = 1/radius (1/length); give at most one of them
-        (both: they must agree); neither: k0 = 0 (flat sheet). With
-        ``rest_curvature="mesh"`` k0 is only a reference (the mesh's own curvature is
-        the rest curvature; see the module docstring); with ``"k0"`` it is b̄ = k0 ā.
+    radius, k0 : natural curvature k0 = 1/radius (1/length) of ``rest_curvature="k0"``
+        (b̄ = k0 ā), which needs one of them (both: they must agree; k0 = 0 for a flat
+        sheet). With ``rest_curvature="mesh"`` (default) they are not used: the mesh's
+        own curvature is the rest curvature (module docstring).
     lam_max, lam_min : contractility of untouched and saturated tissue, 0 < Λmin ≤ Λmax.
     lam0 : reference contractility Λ0 of s = Λ0/Λ(c) (default Λmax). Note s(0) =
         Λmax/Λ(0) = 1 + 1.5e-5 with the defaults (Λ(0) is not exactly Λmax); pass
         ``lam0=contractility(0, ...)`` for s(0) = 1 exactly.
-    b : steepness of the switch (1/concentration, > 0); c_star : threshold c*.
+    b : steepness of the switch (1/concentration, > 0); c_star : threshold c* (≥ 0).
     w : production rate (concentration·length/time, ≥ 0); Hs : saturation curvature (1/length, > 0).
     beta : degradation rate (1/time, ≥ 0); D : diffusion coefficient (length²/time, ≥ 0).
     rest_curvature : "mesh" (default) or "k0", see the module docstring.
@@ -195,7 +195,8 @@ class MechanochemicalModel:
         if self.lam0 is not None:
             _finite("lam0 (Λ0)", self.lam0, 0.0, lo_open=True, text="(0, inf)")
         _finite("b (steepness of the contractility switch)", self.b, 0.0, lo_open=True, text="(0, inf)")
-        _finite("c_star (threshold c*)", self.c_star)
+        _finite("c_star (threshold c*)", self.c_star, 0.0,
+                text="[0, inf) (c >= 0, so c* < 0 would pattern everything)")
         _finite("w (production rate)", self.w, 0.0)
         _finite("Hs (saturation curvature)", self.Hs, 0.0, lo_open=True, text="(0, inf)")
         _finite("beta (degradation rate)", self.beta, 0.0)
@@ -203,6 +204,10 @@ class MechanochemicalModel:
         Material(self.E, self.nu, self.membrane_law)    # checks the law
         if self.rest_curvature not in REST_CURVATURES:
             raise ValueError(f"rest_curvature must be one of {REST_CURVATURES}, got {self.rest_curvature!r}")
+        if self.rest_curvature == "k0" and self.radius is None and self.k0 is None:
+            # k0 = 0 by default made a sphere's whole surface 'curved' (H ≈ 1/R) and patterned it at t = 0
+            raise ValueError("rest_curvature='k0' needs the natural curvature: give radius (k0 = 1/R) or k0 "
+                             "(0 for a flat sheet)")
         _store_numbers(self)
 
     # derived quantities
@@ -280,7 +285,11 @@ class GrowthCoupling:
 
     def stretch(self, c_vertices) -> np.ndarray:
         """s per element from the vertex concentrations (element mean of c, then s(c))."""
-        return self.params.stretch(element_average(c_vertices, self.triangles))
+        c = np.asarray(c_vertices)
+        n = self.model.mesh.n_vertices
+        if c.shape != (n,):
+            raise ValueError(f"c must have one value per vertex, shape ({n},), got {c.shape}")
+        return self.params.stretch(element_average(c, self.triangles))
 
     def rest_state(self, s) -> RestState:
         """The grown targets for the element stretches ``s`` (m,)."""
@@ -376,6 +385,13 @@ class InitialSpot:
     direction: tuple | None = None
     distance: str = "geodesic"
 
+    def __post_init__(self):        # what can be checked without the mesh: said where the spot is made
+        if self.amplitude is not None:
+            _finite("spot amplitude", self.amplitude, 0.0)
+        if self.width is not None:
+            _finite("spot width", self.width, 0.0, lo_open=True, text="(0, inf)")
+        _finite("spot elongation", self.elongation, 0.0, lo_open=True, text="(0, inf)")
+
     def field(self, points, params: MechanochemicalModel) -> np.ndarray:
         if self.amplitude is None:
             amp = params.c_max
@@ -412,12 +428,14 @@ def feedback_gain(dc, dP, fraction: float = 0.1) -> float:
     sphere), and a global average (ΔP · Δc)/(Δc · Δc) dilutes them with the slow rest:
     −0.7 … −4.5 measured while those vertices alternated at ratios −8 … −21.
     """
-    dc = np.asarray(dc, float)
+    dc, dP = np.asarray(dc, float), np.asarray(dP, float)
+    if dc.ndim != 1 or dP.shape != dc.shape:
+        raise ValueError(f"dc and dP must be vectors of the same length, got shapes {dc.shape} and {dP.shape}")
     a = np.abs(dc)
     if not len(a) or a.max() <= 0:
         return float("nan")
     sel = a >= fraction * a.max()
-    return float(np.min(np.asarray(dP, float)[sel] / dc[sel]))
+    return float(np.min(dP[sel] / dc[sel]))
 
 
 def feedback_step_limit(g: float, beta: float, rho: float, exponential: bool) -> float:
@@ -441,6 +459,7 @@ def feedback_step_limit(g: float, beta: float, rho: float, exponential: bool) ->
     >>> feedback_step_limit(0.5, 1.0, 0.5, exponential=True)
     inf
     """
+    beta, rho = _finite("beta", beta, 0.0), _finite("rho", rho, 0.0)
     if not (math.isfinite(g) and g < -rho * beta) or rho <= 0:
         return math.inf
     if exponential and beta > 0:

@@ -47,6 +47,11 @@ def test_parameter_validation_names_the_parameter():
         MechanochemicalModel(D=-1.0)
     with pytest.raises(ValueError, match="Hs"):
         MechanochemicalModel(Hs=0.0)
+    with pytest.raises(ValueError, match=r"c_star \(threshold c\*\) must be a finite number in \[0, inf\)"):
+        MechanochemicalModel(c_star=-0.1)         # c >= 0: every element would be switched
+    with pytest.raises(ValueError, match="rest_curvature='k0' needs the natural curvature"):
+        MechanochemicalModel(rest_curvature="k0")   # k0 = 0 silently: a sphere's H ≈ 1/R everywhere
+    assert MechanochemicalModel(rest_curvature="k0", k0=0.0).natural_curvature == 0.0
     with pytest.raises(ValueError, match="dt_initial"):
         TimeStepping(dt_initial=10.0, dt_max=1.0)
     with pytest.raises(ValueError, match=r"feedback_amplification must be a finite number in \[0.0, 1.0\]"):
@@ -114,6 +119,9 @@ def test_growth_coupling_targets(ball):
     assert np.ptp(g.k_ref) * R > 0.1
     H, Hv = g.mean_curvature(model.initial_unknowns())
     assert np.all(H == 0) and np.all(Hv == 0)                 # the drawn mesh has H = 0 exactly
+    for c in (np.zeros(ball.n_vertices + 7), np.zeros(ball.n_vertices - 1)):
+        with pytest.raises(ValueError, match=rf"c must have one value per vertex, shape \({ball.n_vertices},\)"):
+            g.stretch(c)
 
 
 # ----------------------------------------------------------------------------- the loop
@@ -557,3 +565,16 @@ def test_feedback_bound_damps_the_oscillation_of_a_stiff_negative_feedback(expon
     a = np.exp(-dts[-1]) + (1 - np.exp(-dts[-1])) * lam if exponential else (1 + lam * dts[-1]) / (1 + dts[-1])
     assert -1.0 < a < 0.0
     assert dts[-1] > 0.5 * feedback_step_limit(lam, 1.0, 0.5, exponential)   # not needlessly small
+
+
+def test_spot_and_feedback_helpers_refuse_what_they_cannot_use():
+    from femshell.coupled import feedback_gain, feedback_step_limit
+
+    with pytest.raises(ValueError, match=r"spot amplitude must be a finite number in \[0.0, inf"):
+        InitialSpot(amplitude=-1.0)               # said when the spot is made, not inside CoupledLoop
+    with pytest.raises(ValueError, match=r"spot width must be a finite number in \(0, inf\)"):
+        InitialSpot(width=0.0)
+    with pytest.raises(ValueError, match="dc and dP must be vectors of the same length"):
+        feedback_gain(np.ones(3), np.ones(2))
+    with pytest.raises(ValueError, match="beta must be a finite number"):
+        feedback_step_limit(-19.0, np.nan, 1.0, exponential=True)

@@ -11,7 +11,7 @@ import pytest
 import femshell
 
 ROOT = Path(__file__).resolve().parents[1]
-MODULES = sorted(m.name for m in pkgutil.walk_packages(femshell.__path__, "femshell."))
+MODULES = ["femshell"] + sorted(m.name for m in pkgutil.walk_packages(femshell.__path__, "femshell."))
 
 
 @pytest.mark.parametrize("name", MODULES)

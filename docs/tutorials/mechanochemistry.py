@@ -63,7 +63,8 @@ final = summary["final"]
 print(f"status {summary['status']}, {summary['steps']} steps, resumed {summary['resumes']} time(s), "
       f"{summary['mesh']['n_vertices']} vertices, wall {summary['wall_s']:.0f} s")
 print(f"final: t = {final['t']:.3g}, max c = {final['max_c']:.3f} (saturation w Hs/beta = {final['c_max_theory']}), "
-      f"{final['pattern']['n_spots']} spot(s), radius {final['radius_min']:.2f} ... {final['radius_max']:.2f}")
+      f"{final['pattern']['n_spots']} spot(s), distance from the centre "
+      f"{final['radius_min']:.2f} ... {final['radius_max']:.2f}")
 print("files:", ", ".join(sorted(p.name for p in run.iterdir())))
 
 # %% [series]
