@@ -12,8 +12,9 @@ pinching forces), so the deflection grows as t falls.
 References: independent, for every thickness
 --------------------------------------------
 Only t/R = 1e-2 has a published value. For the others this case computes the answer of
-the continuum model that the element discretises — Koiter's linear shell energy
-``(t/4)‖ā⁻¹δa‖² + (t³/12)‖ā⁻¹δb‖²`` with δa, δb the linearised changes of the first and
+the continuum model that the element discretises — the linear shell energy
+``(t/4)‖ā⁻¹δa‖² + (t³/12)‖ā⁻¹δb‖²`` (Koiter-type, but with the change of the second fundamental
+form itself as the bending measure, as the element has, not Koiter's modified curvature tensor) with δa, δb the linearised changes of the first and
 second fundamental forms of the cylinder (derived symbolically; see
 :func:`cylinder_strains`) — by a semi-analytical method that shares nothing with the
 triangle element:
@@ -75,7 +76,7 @@ from .framework import Row
 NAME = "thin-shell-locking"
 DESCRIPTION = ("Scordelis-Lo roof and pinched cylinder at t/R = 1e-1 .. 1e-4 on fixed meshes: error against "
                "series solutions of the same shell theory, thickness scaling, condition numbers, round-off")
-SOURCE = ("semi-analytical solutions of Koiter's linear shell theory (the continuum limit of this element) "
+SOURCE = ("semi-analytical solutions of the linear shell theory this element discretises (its continuum limit) "
           "computed in this module: double Fourier series (pinched cylinder), Fourier series x 1D Hermite FE "
           "(Scordelis-Lo); at t/R = 1e-2 checked against the published 0.3006 (Kirchhoff-Love, Kiendl et al. "
           "CMAME 198 (2009) 3902) and 1.82488e-5 (MacNeal & Harder, FEAD 1 (1985) 3)")
@@ -124,7 +125,7 @@ def _material(E, nu):
 
 def pinched_cylinder_series(t, R=PC["R"], L=PC["L"], E=PC["E"], nu=PC["nu"], P=PC["P"], terms=(500, 1000, 2000)):
     """Deflection under each of two opposite radial point forces P at mid-length of a closed cylinder
-    with diaphragm ends (length unit of R; Koiter's linear theory, double Fourier series).
+    with diaphragm ends (length unit of R; the element's linear shell theory, double Fourier series).
 
     The sum over m (odd, axial) and n (even, around) up to N is Richardson-extrapolated
     in 1/N² from the given ``terms``.
@@ -174,7 +175,7 @@ def scordelis_lo_series(t, R=SL["R"], L=SL["L"], half_angle=SL["half_angle"], E=
 
     Fourier series in x (odd terms up to ``max_term``: u ∝ cos λx, v, w ∝ sin λx), each
     term a 1D problem in θ solved with ``n_elements`` C¹ cubic Hermite elements for u, v, w
-    (free edges: natural conditions). Koiter's linear theory, the element's continuum limit.
+    (free edges: natural conditions). The element's linear shell theory, its continuum limit.
     """
     al, be = _material(E, nu)
     th0, th1 = np.pi / 2 - half_angle, np.pi / 2 + half_angle
