@@ -21,6 +21,7 @@ CASES = {
     "cantilever-end-shear": "cantilever_end_shear",
     "scordelis-lo": "scordelis_lo",
     "pinched-cylinder": "pinched_cylinder",
+    "pinched-hemisphere": "pinched_hemisphere",
     "clamped-plate-pressure": "clamped_plate_pressure",
     "linear-buckling-plates": "linear_buckling_plates",
     "clamped-plate-growth-buckling": "clamped_plate_growth_buckling",

@@ -1,0 +1,89 @@
+"""Pinched hemisphere with an 18° hole: the benchmark of nearly inextensional bending with large
+rigid rotations of its parts (MacNeal & Harder's test 4, here in the linear range).
+
+A hemisphere of radius R = 10 and thickness t = 0.04 (E = 6.825e7, ν = 0.3) without the cap of
+polar angle < 18° is loaded at the equator by four radial point forces of F = 2, 90° apart: outward at
+azimuth 0° and 180°, inward at 90° and 270°. Both edges are free; the load is self-equilibrated, so
+only the rigid motions are removed (:func:`femshell.shell.rigid_body_pins`, a statically determinate
+support). The whole hemisphere is modelled, so that no symmetry condition enters; the equator is
+meshed with a multiple of four segments so that each force acts at a vertex.
+
+Measured: the outward displacement under the load at azimuth 0°, as half the change of the distance
+between the two outward-loaded points, which no rigid motion changes (the support's pins sit where
+the symmetric answer moves too, so a displacement read at one point would include the rigid motion
+that holds them).
+
+Reference: MacNeal & Harder's 0.094, the target of their test. Converged shell elements in the
+literature reach 0.0924 (Simo, Fox & Rifai 1990, with transverse shear): the published values
+spread by 1.7 %, so the tolerance is 2 % and 0.0924 is reported beside it. Measured (2026-11-27):
+from 64 to 360 equator segments (786 to 23 446 vertices) the displacement changes by −7.0e-4,
+−1.7e-4, −3.0e-5, +3.1e-5, +2.0e-5 (not monotone: at the finest meshes it rises by 2-3e-4 of
+itself per refinement as the bending under the point load is resolved) to 0.09350 at 23 446
+vertices: 0.53 % below 0.094, 1.2 % above 0.0924.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..mesh.generators import hemisphere
+from ..shell import Material, PointForce, ShellModel, flat_rest_state
+from .common import linear_response
+from .framework import Row, timed
+
+NAME = "pinched-hemisphere"
+DESCRIPTION = ("hemisphere with an 18 deg hole (R=10, t=0.04), four radial point loads F=2 at the equator: "
+               "displacement under the load vs 0.094 (MacNeal-Harder) and 0.0924")
+SOURCE = ("MacNeal & Harder, Finite Elem. Anal. Des. 1 (1985) 3 (test 4, target 0.094); 0.0924 reached by converged "
+          "elements with transverse shear (Simo, Fox & Rifai, CMAME 79 (1990) 21), reported")
+
+R, T, E, NU, F, HOLE_DEG = 10.0, 0.04, 6.825e7, 0.3, 2.0, 18.0
+REFERENCE, CONVERGED_ELEMENTS = 0.094, 0.0924
+#: equator segments per mesh (multiples of four: a vertex under every force)
+LEVELS = {"quick": [64, 92, 128], "full": [64, 92, 128, 180, 252, 360]}
+#: the finest mesh's relative error against 0.094 must be below this: the spread of the published values
+TOLERANCE = 0.02
+
+
+def _mesh(segments):
+    """The hemisphere whose equator gmsh divides into ``segments`` edges (it rounds 2πR/h up)."""
+    h = 2 * math.pi * R / (segments - 0.5)
+    mesh = hemisphere(R, edge_length=h, hole_angle=math.radians(HOLE_DEG))
+    at = [np.array([R * math.cos(a), R * math.sin(a), 0.0]) for a in (0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi)]
+    idx = [int(np.argmin(np.linalg.norm(mesh.points - p, axis=1))) for p in at]
+    off = max(float(np.linalg.norm(mesh.points[i] - p)) for i, p in zip(idx, at))
+    if off > 1e-6 * R:
+        raise RuntimeError(f"no vertex under a load (off by {off:.3g}) at edge length {h:.4g}: gmsh divided the "
+                           "equator differently; choose another segment count")
+    return mesh, h, idx
+
+
+def run(level):
+    segments = LEVELS[level]
+    rows, previous = [], None
+    for i, n in enumerate(segments):
+        mesh, h, (a, b, c, d) = _mesh(n)
+        with timed() as t:
+            loads = [PointForce(mesh, [a], (F, 0.0, 0.0)), PointForce(mesh, [c], (-F, 0.0, 0.0)),
+                     PointForce(mesh, [b], (0.0, -F, 0.0)), PointForce(mesh, [d], (0.0, F, 0.0))]
+            model = ShellModel(mesh, Material(E, NU), flat_rest_state(mesh.points, mesh.triangles, T), [], loads)
+            model.set_rest_state(model.stress_free_rest_state())   # the drawn hemisphere is stress free
+            disp = linear_response(model)
+        outward = 0.5 * (disp[a, 0] - disp[c, 0])       # half the change of the distance, as a rigid motion leaves it
+        inward = -0.5 * (disp[b, 1] - disp[d, 1])
+        finest = i == len(segments) - 1
+        rows.append(Row(f"displacement under the load @ h={h:.4g}", outward, REFERENCE, TOLERANCE if finest else None,
+                        mesh.n_vertices, t()))
+        if previous is not None:
+            rows.append(Row(f"change of the displacement from the previous mesh @ h={h:.4g}",
+                            outward - previous, None, None, mesh.n_vertices, 0.0))
+        previous = outward
+    rows += [Row("finest mesh's displacement against 0.0924 (converged elements with transverse shear)", outward,
+                 CONVERGED_ELEMENTS, None, mesh.n_vertices, 0.0),
+             # the answer's symmetry: the inward-loaded points move as much (measured 1.3e-4 off at 3 038 vertices,
+             # 3.6e-5 at 5 943)
+             Row("inward / outward displacement under the loads, finest mesh", inward / outward, 1.0, 5e-4,
+                 mesh.n_vertices, 0.0)]
+    return rows
