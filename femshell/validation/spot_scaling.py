@@ -185,18 +185,24 @@ def run(level, out_dir=None, log=None):
         is_eps = var.startswith("eps")
         ref = REFERENCE["eps" if is_eps else "h"]
         fixed = f"eps={EPS_FIXED:g}" if not is_eps else f"h={H_FIXED:g}"
-        spotted = [k for k in keys if states[k]["measures"].n_spots > 0]
+        # a run that failed midway (its last state is not the pattern's) is left out of the fit
+        failed = [k for k in keys if states[k]["status"] == "failed"]
+        spotted = [k for k in keys if k not in failed and states[k]["measures"].n_spots > 0]
         x = [k[1] if is_eps else k[0] for k in spotted]
         p, sp = fit_exponent(x, [states[k]["measures"].spot_radius for k in spotted])
         rows.append(Row(f"states with spots in the sweep of {label} at {fixed}", len(spotted)))
+        if failed:
+            rows.append(Row(f"failed runs left out of the sweep of {label} at {fixed}", len(failed)))
         if not math.isnan(p):       # no NaN in a result file: the count row says why there is no exponent
-            err = "undetermined with 2 states" if math.isnan(sp) else f"{sp:.2g}"
+            err = ("undetermined with 2 states" if math.isnan(sp)
+                   else f"{sp:.2g} from {len(spotted)} states, {len(spotted) - 2} degree(s) of freedom")
             rows.append(Row(f"fitted exponent of the spot radius vs {label} at {fixed} (+- {err}; paper {ref:g})", p,
                             ref))
         multi = [k for k in spotted if states[k]["measures"].n_spots >= 2]
         if len(multi) == len(spotted) and not math.isnan(p):
             q, sq = fit_exponent(x, [states[k]["measures"].spacing for k in spotted])
-            err = "undetermined with 2 states" if math.isnan(sq) else f"{sq:.2g}"
+            err = ("undetermined with 2 states" if math.isnan(sq)
+                   else f"{sq:.2g} from {len(spotted)} states, {len(spotted) - 2} degree(s) of freedom")
             rows.append(Row(f"fitted exponent of the spot spacing vs {label} at {fixed} (+- {err}; paper {ref:g})", q,
                             ref))
         else:
