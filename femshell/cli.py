@@ -8,6 +8,7 @@ import os
 import signal
 import sys
 import time
+import warnings
 from pathlib import Path
 
 MESH_KINDS = ("sphere", "disk", "plate", "strip", "annulus", "cylinder", "hemisphere")
@@ -284,7 +285,9 @@ def main(argv=None):
     handler = {"mesh": _cmd_mesh, "validate": _cmd_validate, "run": _cmd_run, "scenes": _cmd_scenes,
                "render": _cmd_render}[args.command]
     try:
-        return handler(args) or 0
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return handler(args) or 0
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
@@ -302,6 +305,12 @@ def main(argv=None):
         else:
             print(f"femshell {args.command}: error: " + "\n".join(lines), file=sys.stderr)
         return 2
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """A warning as one line, "warning: ...": not the file, line number and source line of where it
+    was raised, which read like a fragment of a traceback."""
+    print(f"warning: {message}", file=file or sys.stderr)
 
 
 def console_main():

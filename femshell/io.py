@@ -368,14 +368,15 @@ def read_pvd(path) -> list[tuple[float, Path]]:
 
 
 def find_series(out_dir, name: str | None = None) -> Path:
-    """The PVD file of a run directory: ``<name>.pvd`` if given, else ``series.pvd``, else the only .pvd."""
+    """The PVD file of a run directory: ``<name>.pvd`` if given (``name`` with or without ".pvd"), else
+    ``series.pvd``, else the only .pvd."""
     out_dir = Path(out_dir)
     if out_dir.is_file():
         raise ValueError(f"{out_dir} is a file; give the run directory that holds the series")
     if not out_dir.is_dir():
         raise FileNotFoundError(f"{out_dir}: no such directory")
     if name is not None:
-        p = out_dir / f"{name}.pvd"
+        p = out_dir / (name if name.endswith(".pvd") else f"{name}.pvd")
         if not p.exists():
             raise FileNotFoundError(f"{p}: no such time series")
         return p

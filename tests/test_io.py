@@ -107,6 +107,7 @@ def test_time_series_roundtrip_with_meshio(tmp_path, square):
     f = read_frame(entries[-1][1], entries[-1][0])
     assert f.time == 0.25 and set(f.point_data) == {"c", "u"}
     assert find_series(tmp_path) == tmp_path / "series.pvd"
+    assert find_series(tmp_path, "series") == find_series(tmp_path, "series.pvd") == tmp_path / "series.pvd"
     assert _leftovers(tmp_path) == []
 
 

@@ -305,6 +305,18 @@ def test_temporaries_of_a_killed_writer_are_removed(tmp_path):
     assert not any(p.exists() for p in left) and all(p.exists() for p in mine)
 
 
+def test_a_warning_is_one_line_on_the_command_line(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert run("default", out, extra=["--max-steps", "2"], overrides=SPHERE_TINY) == 0
+    (out / "checkpoint.npz").write_bytes(b"torn")           # the resume falls back to checkpoint.npz.prev
+    capsys.readouterr()
+    assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY) == 0
+    err = capsys.readouterr().err
+    said = [line for line in err.splitlines() if "checkpoint.npz.prev" in line]
+    assert said and all(line.startswith("warning: ") for line in said)
+    assert "RuntimeWarning" not in err and "load_checkpoint(" not in err
+
+
 def test_the_summary_is_written_before_the_pictures(tmp_path, monkeypatch):
     """A renderer that dies natively (VTK without a usable OpenGL) must not leave a finished run
     without its summary; the movie is coloured by output.picture_field."""
