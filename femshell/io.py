@@ -433,8 +433,9 @@ class TimeSeriesWriter:
         False (a new run): frames of an earlier series with this name in ``out_dir``
         are deleted when the first frame is written (its arguments checked first, so a
         refused frame leaves the earlier series in place). True: the existing ``.pvd`` is
-        read and appended to; entries whose file is missing are dropped with a warning. Call :meth:`truncate_after` with the
-        checkpoint time so frames written after the checkpoint disappear.
+        read and appended to; entries whose file is missing are dropped with a warning (frames
+        without their ``.pvd`` cannot be resumed: ValueError, nothing deleted). Call
+        :meth:`truncate_after` with the checkpoint time so frames written after the checkpoint disappear.
 
     Each :meth:`write` writes its VTU atomically, then rewrites the .pvd atomically,
     so a killed run leaves a valid series (at worst an orphan VTU that the next
@@ -458,6 +459,10 @@ class TimeSeriesWriter:
         self.pvd_path = self.out_dir / f"{name}.pvd"
         self._pattern = re.compile(re.escape(name) + r"_(\d{6,})\.vtu")
         self.entries: list[tuple[float, str]] = []
+        if resume and not self.pvd_path.exists() and any(self._pattern.fullmatch(p.name)
+                                                         for p in self.out_dir.iterdir()):
+            raise ValueError(f"{self.pvd_path} is missing: the frames of {self.out_dir} cannot be resumed without "
+                             "their index (put it back, or start a new series)")
         if resume and self.pvd_path.exists():
             kept = []
             for t, p in read_pvd(self.pvd_path):

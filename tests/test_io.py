@@ -193,6 +193,12 @@ def test_a_resumed_series_keeps_frames_that_are_symlinks(tmp_path, square):
     with pytest.warns(RuntimeWarning, match="series_000002.vtu at time 0.2 is missing or outside"):
         w = TimeSeriesWriter(linked, square, resume=True)
     assert w.times == [0.0, 0.1]
+    # frames without their index cannot be resumed: said, and nothing deleted
+    (src / "series.pvd").unlink()
+    frames = sorted(p.name for p in src.glob("series_*.vtu"))
+    with pytest.raises(ValueError, match="series.pvd is missing: the frames of .* cannot be resumed"):
+        TimeSeriesWriter(src, square, resume=True)
+    assert sorted(p.name for p in src.glob("series_*.vtu")) == frames
 
 
 # ----------------------------------------------------------------------------- checkpoints
