@@ -29,10 +29,17 @@ def observed_order(n_vertices, errors):
     return -2.0 * slope
 
 
+#: meshes of a series that an order is fitted to: the finest, as validation/convergence.py does (the
+#: coarse ones are often not yet in the asymptotic range, and one fit window gives one order)
+ORDER_FIT_MESHES = 4
+
+
 def order_row(quantity, rows):
-    """A row reporting the fitted convergence order of the rows whose quantity starts with ``quantity``."""
+    """A row reporting the convergence order fitted to the finest (up to ORDER_FIT_MESHES) rows whose
+    quantity is ``quantity @ ...``."""
     from .framework import Row
 
     sel = [r for r in rows if r.quantity.split(" @")[0] == quantity and r.rel_error is not None]
+    sel = sorted(sel, key=lambda r: r.n_vertices)[-ORDER_FIT_MESHES:]
     p = observed_order([r.n_vertices for r in sel], [r.rel_error for r in sel])
-    return [] if p is None else [Row(f"observed order of {quantity}", p)]
+    return [] if p is None else [Row(f"observed order of {quantity} (finest {len(sel)} meshes)", p)]
