@@ -40,6 +40,11 @@ def interrupt_handler(signum, frame):
     raise KeyboardInterrupt
 
 
+def run_handles_signals() -> bool:
+    """Whether a run's :func:`interruptible` block is active (its handler holds SIGTERM)."""
+    return signal.getsignal(signal.SIGTERM) is interrupt_handler
+
+
 def raise_if_interrupted():
     """KeyboardInterrupt if a signal arrived whose exception Python dropped.
 
@@ -59,7 +64,9 @@ def interruptible():
     """SIGINT and SIGTERM raise KeyboardInterrupt in the block (via :func:`interrupt_handler`).
 
     Nested blocks keep the outer block's handlers and note; the outermost puts the earlier
-    handlers back. Outside the main thread (no signals there) the block runs unchanged.
+    handlers back. A signal the process ignores stays ignored (a shell starts background jobs
+    with SIGINT ignored, so that Ctrl-C in the terminal leaves them running). Outside the main
+    thread (no signals there) the block runs unchanged.
 
     >>> from femshell._interrupts import interruptible, raise_if_interrupted
     >>> with interruptible():
@@ -72,7 +79,8 @@ def interruptible():
         return
     _interrupted = False
     with _masked():
-        old = {sig: signal.signal(sig, interrupt_handler) for sig in _SIGNALS}
+        old = {sig: signal.signal(sig, interrupt_handler) for sig in _SIGNALS
+               if signal.getsignal(sig) is not signal.SIG_IGN}
     try:
         yield
     finally:

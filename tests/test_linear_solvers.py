@@ -123,22 +123,30 @@ def test_pardiso_refactor_reuses_analysis():
 
 
 @pytest.mark.skipif("pardiso" not in available_backends(), reason="pardiso unavailable")
-def test_a_collected_pardiso_factor_is_freed_at_the_next_analysis():
-    # not in the garbage collector's callback, where a Ctrl-C's exception would be dropped
+def test_a_collected_pardiso_factor_is_freed_at_once_or_in_a_run_at_the_next_factorisation(monkeypatch):
+    # in a run, not in the garbage collector's callback, where a Ctrl-C's exception would be dropped
+    from femshell._interrupts import interruptible
     from femshell.solvers import linear
 
+    freed = []
+    free = linear._free_pardiso
+    monkeypatch.setattr(linear, "_free_pardiso", lambda s: (freed.append(id(s)), free(s)))
     A = laplacian_2d(30)
-    linear._free_collected()
-    f = factorize(A, "spd", "pardiso")
-    handle = f._impl.solver
-    del f
-    assert [id(s) for s in linear._COLLECTED] == [id(handle)]
-    g = factorize(A, "spd", "pardiso")
-    assert linear._COLLECTED == []
     b = np.ones(A.shape[0])
-    assert rel_residual(A, g.solve(b), b) < 1e-12
-    g.free()                                      # an explicit free frees at once
-    assert linear._COLLECTED == []
+    f = factorize(A, "spd", "pardiso")
+    handle = id(f._impl.solver)
+    del f                                         # outside a run: freed at once
+    assert freed == [handle] and linear._COLLECTED == []
+    with interruptible():
+        f = factorize(A, "spd", "pardiso")
+        handle = id(f._impl.solver)
+        del f
+        assert [id(s) for s in linear._COLLECTED] == [handle] and freed == [freed[0]]
+        g = factorize(A, "spd", "pardiso")        # the next factorisation frees it
+        assert linear._COLLECTED == [] and freed[-1] == handle
+        assert rel_residual(A, g.solve(b), b) < 1e-12
+        g.free()                                  # an explicit free frees at once
+        assert linear._COLLECTED == [] and len(freed) == 3
 
 
 # Run in a child process: MKL reads MKL_THREADING_LAYER once, when it is loaded.

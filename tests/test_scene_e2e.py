@@ -298,7 +298,8 @@ def test_temporaries_of_a_killed_writer_are_removed(tmp_path):
     (out / "pictures").mkdir(exist_ok=True)
     left = [out / ".checkpoint.npz.tmp-99999-0123abcd.npz", out / ".summary.json.tmp-99999-0123abcd.json",
             out / "pictures" / ".top.png.tmp-99999-0123abcd.png"]
-    mine = [out / ".notes.txt.tmp-99999-0123abcd.txt", out / "pictures" / ".mine.png.tmp-99999-0123abcd.png"]
+    mine = [out / ".notes.txt.tmp-99999-0123abcd.txt", out / "pictures" / ".mine.png.tmp-99999-0123abcd.png",
+            out / "pictures" / f".top_000003.png.tmp-{os.getpid()}-0123abcd.png"]    # its writer still runs
     for p in left + mine:
         p.write_text("x")
     assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY) == 0
@@ -686,20 +687,23 @@ def test_a_stop_dropped_in_a_finalizer_still_stops_the_run(tmp_path, monkeypatch
     monkeypatch.setattr(TimeRunner, "initialise", stopped_while_starting)
     assert run("default", out, extra=["--overwrite"], overrides=SPHERE_TINY) == 130
     assert _tree(out) == before
-    # once started: the run stops before its next step, resumable
+    # once started: dropped in a step before it commits (then the signal is not held), the run stops
+    # before its next step, or, in the last step of this invocation, after it; resumable either way
     monkeypatch.setattr(TimeRunner, "initialise", initialise)
     advance = TimeRunner.advance
 
-    def stopped_in_step_one(self):
-        result = advance(self)
-        if self.step == 0:
-            _sigterm_in_a_finalizer()
-        return result
+    def stopped_in_step(k):
+        def advance_and_stop(self):
+            if self.step == k:
+                _sigterm_in_a_finalizer()
+            return advance(self)
+        return advance_and_stop
 
-    monkeypatch.setattr(TimeRunner, "advance", stopped_in_step_one)
-    assert run("default", out, extra=["--overwrite"], overrides=SPHERE_TINY) == 130
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "interrupted" and summary["steps"] == 1
+    for k, extra in ((0, ["--overwrite"]), (1, ["--resume", "--max-steps", "1"])):
+        monkeypatch.setattr(TimeRunner, "advance", stopped_in_step(k))
+        assert run("default", out, extra=extra, overrides=SPHERE_TINY) == 130
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["status"] == "interrupted" and summary["steps"] == k + 1
     monkeypatch.setattr(TimeRunner, "advance", advance)
     assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY) == 0
 

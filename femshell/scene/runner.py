@@ -82,7 +82,7 @@ RUN_DIRS = ("pictures", "special")
 RUN_DIR_FILES = re.compile(r"(top|side|bifurcation)(_\d{6}|_last)?\.png|(primary|switched)-\d+-\w+\.vtu")
 FRAME = re.compile(rf"{SERIES}_\d{{6}}\.vtu")
 #: a temporary file of femshell.io's atomic writes (.<target>.tmp-<pid>-<hex>[.ext]); a killed writer leaves it
-TEMPORARY = re.compile(r"\.(?P<target>.+)\.tmp-\d+-[0-9a-f]{8}(\.\w+)?")
+TEMPORARY = re.compile(r"\.(?P<target>.+)\.tmp-(?P<pid>\d+)-[0-9a-f]{8}(\.\w+)?")
 #: keys that may change between a run and its --resume
 RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop"),
                      ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol")}
@@ -119,6 +119,19 @@ def _finite_or_none(v):
 
 
 # ----------------------------------------------------------------------------- the run directory
+
+def _alive(pid: int) -> bool:
+    """Whether a process with this pid runs (another user's counts)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
 
 class RunDir:
     def __init__(self, path: Path):
@@ -206,14 +219,15 @@ class RunDir:
 
     def remove_temporaries(self):
         """Delete the temporary files that a writer killed mid-write left next to femshell's files
-        (a checkpoint's are megabytes on large meshes); called with the lock held."""
+        (a checkpoint's are megabytes on large meshes); called with the lock held. A file whose
+        writer still runs (``femshell render`` takes no lock) is kept."""
         for root, own in [(self.path, lambda n: n in RUN_FILES or FRAME.fullmatch(n))] + [
                 (self.path / d, RUN_DIR_FILES.fullmatch) for d in RUN_DIRS]:
             if not root.is_dir():
                 continue
             for p in root.iterdir():
                 m = TEMPORARY.fullmatch(p.name)
-                if m and own(m["target"]) and p.is_file():
+                if m and own(m["target"]) and p.is_file() and not _alive(int(m["pid"])):
                     with contextlib.suppress(OSError):
                         p.unlink()
 
@@ -231,16 +245,7 @@ class RunDir:
                     pid = int(p.read_text().strip() or "0")
                 except (OSError, ValueError):
                     pid = 0
-                alive = False
-                if pid > 0:
-                    try:
-                        os.kill(pid, 0)
-                        alive = True
-                    except ProcessLookupError:
-                        alive = False
-                    except PermissionError:
-                        alive = True
-                if alive and pid != os.getpid():
+                if _alive(pid) and pid != os.getpid():
                     raise RunDirError(f"{self.path} is in use by a running femshell (pid {pid}, in {p}); wait for "
                                       "it or stop it, or choose another --out (if no femshell runs there, the "
                                       "lock is stale: delete that file)") from None
@@ -501,6 +506,7 @@ class BaseRunner:
         with interruptible():
             try:
                 self.loop()
+                raise_if_interrupted()      # a stop dropped in the last step (the loop ended without a check)
                 if self.status == "running":
                     self.status = self.final_status()
             except StepFailure as exc:

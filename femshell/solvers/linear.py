@@ -86,6 +86,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._interrupts import run_handles_signals
+
 __all__ = ["LinearSolverError", "Factorization", "factorize", "Refactorizer", "smallest_eigenvalues",
            "available_backends", "KINDS", "BACKENDS"]
 
@@ -326,11 +328,19 @@ def _free_pardiso(solver):
         pass
 
 
-#: PARDISO handles of factorisations the garbage collector took: freed at the next analysis, not
-#: in the collector's callback. A SIGTERM or Ctrl-C whose KeyboardInterrupt is raised inside such a
-#: callback is printed and dropped by Python; phase −1 on a large factor takes milliseconds (1-7 ms
-#: at 4 000 vertices, measured), long enough to lose a stop that way; an append takes none.
+#: PARDISO handles of factorisations the garbage collector took during a run: freed at the next
+#: factorisation, not in the collector's callback. A SIGTERM or Ctrl-C whose KeyboardInterrupt is
+#: raised inside such a callback is printed and dropped by Python; phase −1 on a large factor takes
+#: milliseconds (1-7 ms at 4 000 vertices, measured), long enough to lose a stop that way; an append
+#: takes none. Outside a run (no run's signal handler installed) the callback frees at once.
 _COLLECTED: list = []
+
+
+def _collected(solver):
+    if run_handles_signals():
+        _COLLECTED.append(solver)
+    else:
+        _free_pardiso(solver)
 
 
 def _free_collected():
@@ -396,8 +406,8 @@ class _Pardiso:
     def factor(self, U, analyse: bool):
         n = U.shape[0]
         b = np.zeros((n, 1))
+        _free_collected()
         if analyse:
-            _free_collected()
             if self.analysed:
                 self.solver.free_memory(everything=True)
             self.solver.perm = np.zeros(n, np.int32)
@@ -408,7 +418,7 @@ class _Pardiso:
             self.perm = self.solver.perm.astype(np.int64) - 1
             self.analysed = True
             if self._finalizer is None:
-                self._finalizer = weakref.finalize(self, _COLLECTED.append, self.solver)
+                self._finalizer = weakref.finalize(self, _collected, self.solver)
         else:
             t_an = 0.0
         t0 = time.perf_counter()
