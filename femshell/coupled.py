@@ -80,7 +80,7 @@ Accuracy of the two (validation case ``curvature``, a unit sphere stretched into
 spheroid z × 1.1, error of H − H_rest relative to its L2 norm, edge 0.3 … 0.07 R):
 "mesh" 11 → 8 % per element (does not converge: the relaxed angles partly
 reproduce the rest mesh's scatter) and 7.7 → 2.7 % averaged to the vertices (order
-≈ 0.7); "k0" 17 → 1.0 % per element and 18 → 1.1 % at the vertices (order ≈ 2).
+≈ 0.6 on the finest four meshes); "k0" 17 → 1.0 % per element and 18 → 1.1 % at the vertices (order ≈ 2).
 
 Units (design.md section 3): lengths in cell sizes, time in 1/β, E = 1.
 
@@ -150,9 +150,11 @@ class MechanochemicalModel:
     lam0 : reference contractility Λ0 of s = Λ0/Λ(c) (default Λmax). Note s(0) =
         Λmax/Λ(0) = 1 + 1.5e-5 with the defaults (Λ(0) is not exactly Λmax); pass
         ``lam0=contractility(0, ...)`` for s(0) = 1 exactly.
-    b : steepness of the switch (1/concentration, > 0); c_star : threshold c* (≥ 0).
+    b : steepness of the switch (1/concentration, > 0; not the second fundamental form b of the
+        shell); c_star : threshold c* (≥ 0).
     w : production rate (concentration·length/time, ≥ 0); Hs : saturation curvature (1/length, > 0).
-    beta : degradation rate (1/time, ≥ 0); D : diffusion coefficient (length²/time, ≥ 0).
+    beta : degradation rate (1/time, ≥ 0; the β of ∂c/∂t = … − βc, not the elastic β = E/(2(1 + ν))
+        of the energy); D : diffusion coefficient (length²/time, ≥ 0).
     rest_curvature : "mesh" (default) or "k0", see the module docstring.
     membrane_law : "svk" (design.md 1.2) or "neo-hookean", which stays stable where a confined
         spot is compressed below 0.866 of its target length (:mod:`femshell.shell.element`).

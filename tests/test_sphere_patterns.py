@@ -63,20 +63,23 @@ def test_interrupted_scenario_resumes_to_the_uninterrupted_state(tmp_path):
 
 
 def test_spot_scaling_leaves_failed_runs_out_of_its_fits(monkeypatch):
-    """A run that failed midway ends at a state that is not its pattern's: its radius must not enter
-    the exponent (the full level's uniform-thickness h = 2.5 run failed at t = 63 and was fitted)."""
+    """A run that failed midway or was stopped by the wall-time cap ends at a state that is not its
+    pattern's: its radius must not enter the exponent (the full level's uniform-thickness h = 2.5 run
+    failed at t = 63 and was fitted)."""
     from types import SimpleNamespace
 
     from femshell.validation import spot_scaling as ss
 
-    radius = {1.0: 4.0, 2.0: 4.0 * 2 ** 0.5, 3.0: 4.0 * 3 ** 0.5, 4.0: 40.0}     # r ∝ h^(1/2); h = 4 failed
+    radius = {1.0: 4.0, 2.0: 4.0 * 2 ** 0.5, 3.0: 4.0 * 3 ** 0.5, 4.0: 40.0, 5.0: 0.4}   # r ∝ h^(1/2) but h = 4, 5
     monkeypatch.setitem(ss.LEVELS, "quick", dict(ss.LEVELS["quick"], h=tuple(radius)))
     monkeypatch.setattr(ss, "state_rows", lambda key, r: [])
     monkeypatch.setattr(ss, "run_state", lambda key, cfg, ck, log: {
-        "status": "failed" if key[0] == 4.0 else "stationary", "t": 1.0, "max_c": 0.5, "steps": 1, "wall_s": 0.0,
+        "status": {4.0: "failed", 5.0: "wall_time"}.get(key[0], "stationary"), "t": 1.0, "max_c": 0.5, "steps": 1,
+        "wall_s": 0.0,
         "measures": SimpleNamespace(n_spots=1, spot_radius=radius[key[0]], spacing=1.0)})
     rows = {r.quantity: r.value for r in ss.run("quick")}
     fitted = [v for q, v in rows.items() if q.startswith("fitted exponent of the spot radius")]
     assert fitted == [pytest.approx(0.5)]
     assert any("from 3 states, 1 degree(s) of freedom" in q for q in rows)
-    assert rows["failed runs left out of the sweep of h (volume-conserving thickness) at eps=0.5"] == 1
+    assert rows["unfinished runs (failed or stopped early) left out of the sweep of h (volume-conserving thickness) "
+                "at eps=0.5"] == 2

@@ -34,12 +34,17 @@ def observed_order(n_vertices, errors):
 ORDER_FIT_MESHES = 4
 
 
+def finest_order(n_vertices, errors, meshes=ORDER_FIT_MESHES):
+    """(p, k): :func:`observed_order` fitted to the k ≤ ``meshes`` finest meshes of a series."""
+    pairs = sorted(zip(n_vertices, errors))[-meshes:]
+    return (observed_order(*zip(*pairs)) if pairs else None), len(pairs)
+
+
 def order_row(quantity, rows):
     """A row reporting the convergence order fitted to the finest (up to ORDER_FIT_MESHES) rows whose
     quantity is ``quantity @ ...``."""
     from .framework import Row
 
     sel = [r for r in rows if r.quantity.split(" @")[0] == quantity and r.rel_error is not None]
-    sel = sorted(sel, key=lambda r: r.n_vertices)[-ORDER_FIT_MESHES:]
-    p = observed_order([r.n_vertices for r in sel], [r.rel_error for r in sel])
-    return [] if p is None else [Row(f"observed order of {quantity} (finest {len(sel)} meshes)", p)]
+    p, k = finest_order([r.n_vertices for r in sel], [r.rel_error for r in sel])
+    return [] if p is None else [Row(f"observed order of {quantity} (finest {k} meshes)", p)]

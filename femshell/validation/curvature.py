@@ -229,9 +229,9 @@ def run(level):
 
 def _order_rows(quantity, rows):
     """Observed order of ``quantity`` (rows whose value is the error, reference 0)."""
-    from .common import observed_order
+    from .common import finest_order
 
     sel = [r for r in rows if r.quantity.split(" @")[0] == quantity]
-    p = observed_order([r.n_vertices for r in sel], [r.value for r in sel])
-    return [] if p is None else [Row(f"observed order of {quantity}", p)]
+    p, k = finest_order([r.n_vertices for r in sel], [r.value for r in sel])
+    return [] if p is None else [Row(f"observed order of {quantity} (finest {k} meshes)", p)]
 

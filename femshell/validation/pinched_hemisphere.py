@@ -13,9 +13,11 @@ between the two outward-loaded points, which no rigid motion changes (the suppor
 the symmetric answer moves too, so a displacement read at one point would include the rigid motion
 that holds them).
 
-Reference: MacNeal & Harder's 0.094, the target of their test. Converged shell elements in the
-literature reach 0.0924 (Simo, Fox & Rifai 1990, with transverse shear): the published values
-spread by 1.7 %, so the tolerance is 2 % and 0.0924 is reported beside it. Measured (2026-11-27):
+Reference: MacNeal & Harder's 0.094, the target of their test. Many later papers and benchmark
+collections use 0.0924 (Simo, Fox & Rifai 1990) for thin and thick elements alike; it is reported
+beside it. This element converges to 1.2 % above 0.0924, a gap not explained here (transverse shear,
+which this Kirchhoff–Love model lacks, would make a shell softer, not stiffer). The tolerance, 1 %
+against 0.094, is about twice the measured error. Measured (2026-11-27):
 from 64 to 360 equator segments (786 to 23 446 vertices) the displacement changes by −7.0e-4,
 −1.7e-4, −3.0e-5, +3.1e-5, +2.0e-5 (not monotone: at the finest meshes it rises by 2-3e-4 of
 itself per refinement as the bending under the point load is resolved) to 0.09350 at 23 446
@@ -36,15 +38,16 @@ from .framework import Row, timed
 NAME = "pinched-hemisphere"
 DESCRIPTION = ("hemisphere with an 18 deg hole (R=10, t=0.04), four radial point loads F=2 at the equator: "
                "displacement under the load vs 0.094 (MacNeal-Harder) and 0.0924")
-SOURCE = ("MacNeal & Harder, Finite Elem. Anal. Des. 1 (1985) 3 (test 4, target 0.094); 0.0924 reached by converged "
-          "elements with transverse shear (Simo, Fox & Rifai, CMAME 79 (1990) 21), reported")
+SOURCE = ("MacNeal & Harder, Finite Elem. Anal. Des. 1 (1985) 3 (test 4, target 0.094); 0.0924 of Simo, Fox & "
+          "Rifai, CMAME 79 (1990) 21, used by many later papers, reported")
 
 R, T, E, NU, F, HOLE_DEG = 10.0, 0.04, 6.825e7, 0.3, 2.0, 18.0
 REFERENCE, CONVERGED_ELEMENTS = 0.094, 0.0924
 #: equator segments per mesh (multiples of four: a vertex under every force)
 LEVELS = {"quick": [64, 92, 128], "full": [64, 92, 128, 180, 252, 360]}
-#: the finest mesh's relative error against 0.094 must be below this: the spread of the published values
-TOLERANCE = 0.02
+#: the finest mesh's relative error against 0.094 must be below this (measured 0.53 % at 23 446 vertices,
+#: 0.55 % at the quick level's 3 038)
+TOLERANCE = 0.01
 
 
 def _mesh(segments):
@@ -80,7 +83,7 @@ def run(level):
             rows.append(Row(f"change of the displacement from the previous mesh @ h={h:.4g}",
                             outward - previous, None, None, mesh.n_vertices, 0.0))
         previous = outward
-    rows += [Row("finest mesh's displacement against 0.0924 (converged elements with transverse shear)", outward,
+    rows += [Row("finest mesh's displacement against 0.0924 (Simo, Fox & Rifai)", outward,
                  CONVERGED_ELEMENTS, None, mesh.n_vertices, 0.0),
              # the answer's symmetry: the inward-loaded points move as much (measured 1.3e-4 off at 3 038 vertices,
              # 3.6e-5 at 5 943)

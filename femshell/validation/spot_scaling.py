@@ -97,6 +97,8 @@ LEVELS = {
              "mesh_check": (), "wall_time": 1800.0},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
+#: the statuses of a run that reached its end state (the others are left out of the fits)
+FINISHED = ("t_final", "stationary")
 
 _LAST = {}
 
@@ -185,14 +187,16 @@ def run(level, out_dir=None, log=None):
         is_eps = var.startswith("eps")
         ref = REFERENCE["eps" if is_eps else "h"]
         fixed = f"eps={EPS_FIXED:g}" if not is_eps else f"h={H_FIXED:g}"
-        # a run that failed midway (its last state is not the pattern's) is left out of the fit
-        failed = [k for k in keys if states[k]["status"] == "failed"]
-        spotted = [k for k in keys if k not in failed and states[k]["measures"].n_spots > 0]
+        # a run that failed midway or was stopped by the wall-time cap ends at a state that is not its
+        # pattern's: left out of the fit
+        unfinished = [k for k in keys if states[k]["status"] not in FINISHED]
+        spotted = [k for k in keys if k not in unfinished and states[k]["measures"].n_spots > 0]
         x = [k[1] if is_eps else k[0] for k in spotted]
         p, sp = fit_exponent(x, [states[k]["measures"].spot_radius for k in spotted])
         rows.append(Row(f"states with spots in the sweep of {label} at {fixed}", len(spotted)))
-        if failed:
-            rows.append(Row(f"failed runs left out of the sweep of {label} at {fixed}", len(failed)))
+        if unfinished:
+            rows.append(Row(f"unfinished runs (failed or stopped early) left out of the sweep of {label} at {fixed}",
+                            len(unfinished)))
         if not math.isnan(p):       # no NaN in a result file: the count row says why there is no exponent
             err = ("undetermined with 2 states" if math.isnan(sp)
                    else f"{sp:.2g} from {len(spotted)} states, {len(spotted) - 2} degree(s) of freedom")

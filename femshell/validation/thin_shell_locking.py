@@ -70,7 +70,7 @@ from ..shell import (AreaLoad, Material, PointForce, Prescribed, RestState, Shel
                      flat_rest_state)
 from ..shell import element as el
 from ..solvers.linear import factorize
-from .common import linear_response, observed_order
+from .common import finest_order, linear_response
 from .framework import Row
 
 NAME = "thin-shell-locking"
@@ -364,9 +364,9 @@ def _problem_rows(label, cfg, sizes, refs, tol_standard, log=None):
             log(f"  {label} h={h}: {n} vertices done")
     for ratio in RATIOS:
         ns, es = zip(*errors[ratio])
-        p = observed_order(ns, es)
+        p, k = finest_order(ns, es)
         if p is not None:
-            rows.append(Row(f"observed order of {label} deflection, {_tag(ratio)}", p))
+            rows.append(Row(f"observed order of {label} deflection, {_tag(ratio)} (finest {k} meshes)", p))
     return rows
 
 
