@@ -297,6 +297,20 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
         median triangle area (one vertex barely over the threshold is not a spot).
     ridge_elongation : float
         Components with A/(π r_in²) above this are ridges (see the module docstring).
+
+    Examples
+    --------
+    Two caps of height 1 at the poles of a sphere of radius 10 (c > c* where z > 9 or z < −9):
+    each has the area 2πRh = 62.8, so the spot radius √(A_l/(π N)) is √20 = 4.47.
+
+    >>> import numpy as np
+    >>> from femshell.mesh.generators import sphere
+    >>> from femshell.analysis import find_spots
+    >>> m = sphere(10.0, n_vertices=2000)
+    >>> c = np.exp(-(10 - np.abs(m.points[:, 2])) ** 2)          # c* = e^-1 where |z| = 9
+    >>> s = find_spots(m.points, m.triangles, c, c_star=np.exp(-1.0))
+    >>> s.n_spots, [r.kind for r in s.regions], bool(abs(s.spot_radius - 20 ** 0.5) < 0.02)
+    (2, ['spot', 'spot'], True)
     """
     pts, tri = _mesh(points, triangles)
     if len(pts) and not len(tri):
@@ -443,6 +457,17 @@ def polar_profile(points, values, n_bins: int = 18, *, triangles=None, pole=(0.0
     The angle is measured at ``center`` (default: the centroid of the points) from the
     direction ``pole``. With ``triangles`` the mean is weighted by the lumped vertex
     areas, otherwise every vertex counts the same.
+
+    >>> import numpy as np
+    >>> from femshell.mesh.generators import sphere
+    >>> from femshell.analysis import polar_profile
+    >>> m = sphere(10.0, n_vertices=2000)
+    >>> p = polar_profile(m.points, m.points[:, 2] / 10, n_bins=6, triangles=m.triangles)   # cos θ
+    >>> np.round(p.theta, 2)                # bin centres: 30° bands
+    array([0.26, 0.79, 1.31, 1.83, 2.36, 2.88])
+    >>> exact = [0.933, 0.683, 0.25, -0.25, -0.683, -0.933]    # the area means of cos θ over the bands
+    >>> bool(np.allclose(p.mean, exact, atol=0.01))
+    True
     """
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3:
@@ -559,6 +584,14 @@ def count_wrinkles(points, values, radius: float, *, center=(0.0, 0.0), n_sample
     Returns 0 when the non-axisymmetric part is below ``rel_tol`` of the total amplitude
     on the circle (an axisymmetric or flat state). ``min_mode=2`` ignores a tilt (k = 1).
     See :func:`azimuthal_spectrum` for the sampling (pass ``triangles`` for speed).
+
+    >>> import numpy as np
+    >>> from femshell.mesh.generators import disk
+    >>> from femshell.analysis import count_wrinkles
+    >>> d = disk(radius=5.0, edge_length=0.25)
+    >>> x, y = d.points[:, 0], d.points[:, 1]
+    >>> count_wrinkles(d.points, np.hypot(x, y) ** 2 * np.cos(5 * np.arctan2(y, x)), 3.0, triangles=d.triangles)
+    5
     """
     if method not in ("fourier", "zeros"):
         raise ValueError(f"method must be 'fourier' or 'zeros', got {method!r}")

@@ -158,6 +158,13 @@ class MechanochemicalModel:
     rest_curvature : "mesh" (default) or "k0", see the module docstring.
     membrane_law : "svk" (design.md 1.2) or "neo-hookean", which stays stable where a confined
         spot is compressed below 0.866 of its target length (:mod:`femshell.shell.element`).
+
+    >>> from femshell.coupled import MechanochemicalModel
+    >>> p = MechanochemicalModel()          # design.md 1.5's spots: h0 = 2, c* = 0.1, w = 15, D = 0
+    >>> round(p.c_max, 6), round(p.s_max, 6)   # saturation w Hs/β and the largest stretch Λmax/Λmin
+    (0.75, 1.5)
+    >>> round(float(p.stretch(0.2)), 4)     # a vertex well above c*: nearly the full stretch
+    1.5
     """
 
     nu: float = 0.5
@@ -325,6 +332,15 @@ def gaussian_spot(points, amplitude: float, width: float, *, pole=(0.0, 0.0, 1.0
     ``elongation`` e ≠ 1 the spot is stretched by e along the tangent ``direction``
     at the pole (default: the x axis projected on the tangent plane):
     r² = (ξ/e)² + η² in tangent coordinates (ξ along ``direction``).
+
+    >>> import numpy as np
+    >>> from femshell.mesh.generators import sphere
+    >>> from femshell.coupled import gaussian_spot
+    >>> m = sphere(10.0, n_vertices=2000)
+    >>> c = gaussian_spot(m.points, 0.75, 3.0, center=(0, 0, 0))   # amplitude 0.75, width 3, north pole
+    >>> theta = np.arccos(m.points[:, 2] / np.linalg.norm(m.points, axis=1))
+    >>> bool(np.allclose(c, 0.75 * np.exp(-(10 * theta / 3.0) ** 2), atol=1e-3))    # r = R θ
+    True
     """
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3:
