@@ -52,6 +52,8 @@ def test_interrupted_scenario_resumes_to_the_uninterrupted_state(tmp_path):
     rest = run_scenario(SCENARIOS["spots"], checkpoint=ck, **kw)
     assert rest["status"] == whole["status"] and rest["t"] == whole["t"]
     assert rest["steps"] == whole["steps"] and rest["saddles"] == 0 and rest["negative_c"] == 0
+    # the wall time of the whole run adds up its calls (the committed records quoted the last call only)
+    assert rest["wall_s_total"] > rest["wall_s"] + 0.5 * part["wall_s"]    # (part: measures after its last save)
     np.testing.assert_allclose(rest["c"], whole["c"], rtol=0, atol=1e-12)
     np.testing.assert_allclose(rest["points"], whole["points"], rtol=0, atol=1e-10)
     later = run_scenario(SCENARIOS["spots"], checkpoint=ck, t_final=0.4, n_vertices=300, radius=10.0)

@@ -7,7 +7,8 @@ with ds_max = 0.2 … 0.0025 and measures each end state against the run with th
 (the reference; no closed form exists): the largest difference of c over c_max = w Hs/β, the
 largest vertex distance over h0 (and both as area-weighted root-mean-square differences), and the
 spot radius of the paper's formula. Their decrease with ds_max is the loop's observed order in time;
-the wall time gives the cost of each accuracy.
+the wall time gives the cost of each accuracy (a run's set-up included, and in the first run of a
+process also the element kernels' compilation, ~5 s: small against runs of 1-40 min).
 
 Each finished run's end state is saved in ``--states`` (an .npz per ds_max); running the command
 again reuses them, so it can be stopped between runs. Results go to a JSON (``--json``) and, with
@@ -75,14 +76,24 @@ def compare(runs):
                      "n_spots": int(r["n_spots"]), "spot_radius": r["spot_radius"], "max_c": r["max_c"],
                      "error_c": float(dc.max()), "error_c_rms": float(np.sqrt(weight @ dc**2)),
                      "error_x": float(dx.max()), "error_x_rms": float(np.sqrt(weight @ dx**2)),
-                     "error_radius": abs(r["spot_radius"] / ref["spot_radius"] - 1.0)})
+                     "error_radius": _finite_or_none(abs(r["spot_radius"] / ref["spot_radius"] - 1.0))})
+        rows[-1]["spot_radius"] = _finite_or_none(r["spot_radius"])    # no spot: NaN, written as null
     for key in ("error_c", "error_c_rms", "error_x", "error_x_rms", "error_radius"):
         for a, b in zip(rows, rows[1:]):
-            ok = a[key] > 0 and b[key] > 0
+            ok = a[key] is not None and b[key] is not None and a[key] > 0 and b[key] > 0
             b[f"order_{key[6:]}"] = math.log(a[key] / b[key]) / math.log(a["ds_max"] / b["ds_max"]) if ok else None
-    reference = {k: float(ref[k]) for k in ("ds_max", "wall_s", "spot_radius", "max_c")}
+    reference = {k: _finite_or_none(float(ref[k])) for k in ("ds_max", "wall_s", "spot_radius", "max_c")}
     reference.update(steps=int(ref["steps"]), n_spots=int(ref["n_spots"]))
     return rows, reference
+
+
+def _finite_or_none(v):
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _num(v, fmt):
+    return "—" if v is None else format(v, fmt)
 
 
 def table(meta, rows, reference):
@@ -91,7 +102,7 @@ def table(meta, rows, reference):
         return "" if v is None else f" ({v:.2f})"
     lines = [f"`{meta['scenario']}` on R = {meta['radius']:g}, {meta['n_vertices']} vertices, t = 0 … "
              f"{meta['t_final']:g}; reference: ds_max = {reference['ds_max']:g} ({reference['steps']} steps, "
-             f"{reference['wall_s']:.0f} s; {reference['n_spots']} spot(s), radius {reference['spot_radius']:.3f}, "
+             f"{reference['wall_s']:.0f} s; {reference['n_spots']} spot(s), radius {_num(reference['spot_radius'], '.3f')}, "
              f"max c {reference['max_c']:.4f}). Observed order against the next larger ds_max in brackets.", "",
              "| ds_max | steps | wall time (s) | c − c_ref over c_max: max, rms | x − x_ref over h0: max, rms "
              "| N_sp | spot radius − ref (rel.) |",
@@ -99,7 +110,8 @@ def table(meta, rows, reference):
     for r in rows:
         lines.append(f"| {r['ds_max']:g} | {r['steps']} | {r['wall_s']:.1f} | {r['error_c']:.2e}{order(r, 'c')}, "
                      f"{r['error_c_rms']:.2e}{order(r, 'c_rms')} | {r['error_x']:.2e}{order(r, 'x')}, "
-                     f"{r['error_x_rms']:.2e}{order(r, 'x_rms')} | {r['n_spots']} | {r['error_radius']:.2e}{order(r, 'radius')} |")
+                     f"{r['error_x_rms']:.2e}{order(r, 'x_rms')} | {r['n_spots']} | {_num(r['error_radius'], '.2e')}"
+                     f"{order(r, 'radius')} |")
     return "\n".join(lines)
 
 
@@ -112,13 +124,21 @@ def main():
     ap.add_argument("--ds-max", type=float, nargs="+", default=[0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.0025])
     ap.add_argument("--states", type=Path, default=Path("validation-out/coupled-time-step"),
                     help="directory of the saved end states")
-    ap.add_argument("--json", type=Path, default=Path("validation/results/studies/coupled-time-step.json"),
-                    help="records of the runs (default: the committed "
-                         "validation/results/studies/coupled-time-step.json, replaced by this run's)")
+    ap.add_argument("--json", type=Path, default=None,
+                    help="records of the runs (default: validation/results/studies/coupled-time-step.json for "
+                         "propagation, the committed study this run replaces; coupled-time-step-SCENARIO.json for "
+                         "another scenario)")
     ap.add_argument("--doc", type=Path, default=None, help="markdown file whose generated table to rewrite")
     args = ap.parse_args()
-    if len(args.ds_max) < 2 or min(args.ds_max) <= 0:
+    if len(args.ds_max) < 2 or not all(math.isfinite(d) and d > 0 for d in args.ds_max):
         ap.error("--ds-max needs at least two positive values (the smallest is the reference)")
+    if not (math.isfinite(args.radius) and args.radius > 0 and math.isfinite(args.t_final) and args.t_final > 0):
+        ap.error(f"--radius and --t-final must be positive numbers, got {args.radius} and {args.t_final}")
+    if args.n_vertices < 100:
+        ap.error(f"--n-vertices must be >= 100, got {args.n_vertices}")
+    if args.json is None:
+        name = "coupled-time-step" + ("" if args.scenario == "propagation" else f"-{args.scenario}")
+        args.json = Path("validation/results/studies") / f"{name}.json"
     try:
         if args.doc is not None:
             check_generated(args.doc, *markers(args.scenario))
@@ -129,7 +149,7 @@ def main():
     for ds in sorted(args.ds_max, reverse=True):
         r = run(args.scenario, args.radius, args.n_vertices, args.t_final, ds, args.states)
         print(f"ds_max {ds:g}: {r['steps']} steps, {r['wall_s']:.1f} s, {r['n_spots']} spot(s), "
-              f"radius {r['spot_radius']:.4f}, max c {r['max_c']:.5f}", flush=True)
+              f"radius {_num(_finite_or_none(r['spot_radius']), '.4f')}, max c {r['max_c']:.5f}", flush=True)
         runs.append(r)
     rows, reference = compare(runs)
     meta = {"scenario": args.scenario, "radius": args.radius, "n_vertices": runs[0]["n_vertices"],

@@ -117,6 +117,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.resolution < 2 or args.h <= 0 or args.R2 <= 0:
         ap.error("--resolution needs an integer >= 2 (edges per R2), --h and --R2 numbers > 0")
+    if args.out.suffix.lower() not in (".png", ".pdf", ".svg"):     # before the continuation, not after it
+        ap.error(f"--out must end in .png, .pdf or .svg (a picture), got {args.out}")
     try:
         check_writable_dir(args.out.parent, "--out's directory")    # before the continuation, not after
     except ValueError as exc:

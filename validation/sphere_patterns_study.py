@@ -63,7 +63,10 @@ def record(r: dict, radius: float, wall_budget: float, params) -> dict:
     pc, ph = (polar_profile(r["points"], v, 36, triangles=r["triangles"]) for v in (r["c"], r["H"]))
     return {"scenario": r["scenario"], "paper": SCENARIOS[r["scenario"]].paper, "radius": radius,
             "n_vertices": r["n_vertices"], "status": r["status"], "message": r["message"], "t": r["t"],
-            "wall_s": r["wall_s"], "wall_budget_s": wall_budget, "steps": r["steps"],
+            # the whole run's time over all its calls (checkpoints from before 2026-11-27 did not record it: their
+            # total starts at the call that resumed them); the last call's time and budget beside it
+            "wall_s": r.get("wall_s_total", r["wall_s"]), "wall_s_last_call": r["wall_s"],
+            "wall_budget_s": wall_budget, "steps": r["steps"],
             "n_spots": m.n_spots, "n_ridges": m.n_ridges, "kind": m.kind,
             "fraction_patterned": m.fraction_patterned, "spot_radius": num(m.spot_radius),
             "spacing": num(m.spacing), "max_c": r["max_c"], "c_star": r["c_star"], "c_max": r["c_max"],
@@ -165,6 +168,9 @@ def main(argv=None):
                     help="directory of the pictures (default: the committed docs/images/sphere-patterns)")
     ap.add_argument("--table-only", action="store_true")
     args = ap.parse_args(argv)
+    if not (args.scale > 0 and args.t_final > 0 and args.wall_time > 0 and args.n_vertices >= 100):
+        ap.error(f"--scale, --t-final and --wall-time must be > 0 and --n-vertices >= 100, got {args.scale}, "
+                 f"{args.t_final}, {args.wall_time} and {args.n_vertices}")
     try:                                  # a wrong page or directory is reported now, not after hours of runs
         if args.doc is not None:
             check_generated(args.doc, BEGIN, END)

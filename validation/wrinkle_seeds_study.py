@@ -81,6 +81,8 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if not 0.0 < a.eps <= 1.0 or min(a.h) <= 0.0 or a.resolution < 2:
         ap.error("need 0 < eps <= 1, h > 0 and resolution >= 2")
+    if min(a.seeds) < 0:
+        ap.error(f"--seeds must be integers >= 0 (random-number seeds), got {a.seeds}")
     samples = read_samples(a.json)
     other = {(s["eps"], s["resolution"]) for s in samples} - {(a.eps, a.resolution)}
     if other:       # the summary groups by h only

@@ -166,6 +166,7 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
         loop = CoupledLoop(mesh, params, time_stepping, c0=seed or InitialSpot(), log=log)
         history = {}
     setup = time.perf_counter() - t0
+    wall_before = float(history.get("wall_s", 0.0))     # the earlier calls of a resumed run
     counters = {"negative_c": max(0.0, -float(loop.c.min())), "non_finite": 0, "saddles": 0, "steps": 0, "snaps": 0,
                 **history.get("counters", {})}
 
@@ -177,7 +178,8 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
         counters["snaps"] += int(rec.snapped)
 
     def save(state, rec):
-        save_checkpoint(checkpoint, state, {**meta, "history": {"counters": counters}})
+        save_checkpoint(checkpoint, state, {**meta, "history": {"counters": counters,
+                                                                 "wall_s": wall_before + time.perf_counter() - t0}})
 
     result = loop.run(watch, checkpoint=save if checkpoint is not None else None, wall_time=wall_time,
                       max_steps=max_steps)
@@ -189,6 +191,7 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
         fixed_point = float(np.max(np.abs(loop.source - params.beta * loop.c))) / params.c_max
     out = {"scenario": scenario.name, "n_vertices": mesh.n_vertices, "status": result.status,
            "message": result.message, "t": float(loop.t), "wall_s": time.perf_counter() - t0, "setup_s": setup,
+           "wall_s_total": wall_before + time.perf_counter() - t0,
            "measures": measures, "max_c": float(loop.c.max()), "c_star": params.c_star, "c_max": params.c_max,
            "max_H": float(loop.H_vertex.max()), "fixed_point": fixed_point, **counters,
            "non_elliptic": int(loop.non_elliptic),

@@ -53,6 +53,8 @@ def main():
     ap.add_argument("--sizes", type=float, nargs="+", default=[1.0, 0.7, 0.5])
     ap.add_argument("--repeat", type=int, default=2)
     args = ap.parse_args()
+    if args.repeat < 1 or not all(0 < h < 100 for h in args.sizes):
+        ap.error(f"--repeat must be >= 1 and --sizes edge lengths in (0, 100), got {args.repeat} and {args.sizes}")
     print("| h | vertices | unknowns | nnz(K) | Hessian [s] | back-end | mode | factor [s] | refactor [s] | "
           "solve [s] | factor nnz | deflection | error vs 0.3006 |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")

@@ -134,6 +134,7 @@ import resource
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 CATS = ("growth", "predictor", "newton", "hessian", "eg_start", "quasi_newton", "factorize", "check", "solve",
         "line_search", "escape", "curvature", "energy", "chemistry", "record")
@@ -146,7 +147,7 @@ class Timers:
         self.t = dict.fromkeys(CATS, 0.0)
         self.last = {}  # duration of the last call per category
         self.n = {"factorizations": 0, "escapes": 0, "newton_solves": 0, "newton_failed": 0, "iterations": 0,
-                  "qn_iterations": 0}
+                  "qn_iterations": 0, "shift_searches": 0}
 
     def wrap(self, obj, name, cat, count=None):
         f = getattr(obj, name)
@@ -183,17 +184,19 @@ def instrument(loop, timers):
     timers.wrap(loop, "_predict", "predictor")
     timers.wrap(newton_mod, "_escape_saddle", "escape", count="escapes")
     timers.wrap(newton_mod, "_factorize", "factorize", count="factorizations")
+    # the shift search factorises K + tau D by Cholesky attempts of its own, not through _factorize
+    timers.wrap(newton_mod, "_shift_to_positive", "factorize", count="shift_searches")
 
     newton = loop._newton
 
-    def timed_newton(u):
+    def timed_newton(u, *args, **kwargs):      # the snap after a fold passes max_iter= and residual_scale=
         t0 = time.perf_counter()
         h0 = timers.t["hessian"]
         e0 = timers.t["escape"]
         res = None
         timers.last.clear()
         try:
-            res = newton(u)
+            res = newton(u, *args, **kwargs)
             return res
         except newton_mod.NewtonError as exc:
             res = exc.result
@@ -410,6 +413,14 @@ def main():
         with open(a._out, "w") as f:
             json.dump(r, f)
         return
+    if a.json:      # checked before hours of runs, not after the first size
+        from femshell.io import check_writable_dir
+        try:
+            check_writable_dir(Path(a.json).resolve().parent, "--json directory")
+        except ValueError as exc:
+            ap.error(str(exc))
+    if any(n < 100 for n in a.sizes):
+        ap.error(f"--sizes must be vertex counts >= 100, got {a.sizes}")
     results = []
     for p in a.from_json:
         with open(p) as f:
@@ -424,14 +435,16 @@ def main():
             cmd = [sys.executable, __file__, "--_child", str(n), "--_out", path, "--warmup", str(a.warmup),
                    "--steps", str(a.steps), "--wall-limit", str(a.wall_limit), "--full", *map(str, a.full),
                    "--profile", *map(str, a.profile)]
-            subprocess.run(cmd, check=True)
-            with open(path) as f:
-                r = json.load(f)
-            os.unlink(path)
+            try:
+                subprocess.run(cmd, check=True)
+                with open(path) as f:
+                    r = json.load(f)
+            finally:
+                os.unlink(path)
             results.append(r)
             if a.json:
-                with open(a.json, "w") as f:
-                    json.dump(results, f)
+                from femshell.io import atomic_write_json
+                atomic_write_json(a.json, results)
             if r.get("profile"):
                 print(f"\ncProfile of the timed steps, {r['vertices']} vertices:\n{r['profile']}")
             print_table(results)

@@ -51,6 +51,7 @@ spin-wait for cores that other processes hold). Set ``MKL_NUM_THREADS=1`` (or
 from __future__ import annotations
 
 import argparse
+import math
 import time
 
 import numpy as np
@@ -195,6 +196,12 @@ def main(argv=None):
     ap.add_argument("--mkl-threads", type=int, default=None,
                     help="set MKL's thread count for PARDISO (same as the MKL_NUM_THREADS variable)")
     args = ap.parse_args(argv)
+    finite = all(math.isfinite(v) for v in (args.D, args.beta, *args.dt))
+    if not finite or args.D < 0 or args.beta < 0 or min(args.dt) <= 0:
+        ap.error(f"--D and --beta must be finite numbers >= 0 and --dt > 0, got D = {args.D}, beta = {args.beta}, "
+                 f"dt = {args.dt}")
+    if args.repeat < 1 or min(args.sizes) < 100:
+        ap.error(f"--repeat must be >= 1 and --sizes vertex counts >= 100, got {args.repeat} and {args.sizes}")
     if args.mkl_threads is not None:
         _set_mkl_threads(args.mkl_threads)
     try:

@@ -20,8 +20,11 @@ Run:  python3 validation/benchmarks/linear_solvers.py [--sizes 2500 10000 25000]
 
 Measured (November 2026, 2 cores shared with other jobs at a load average of 7–10, so
 the times are inflated and noisy; rankings as in shared/notes/measured-solvers.md).
-PARDISO threads follow femshell.solvers.linear: one thread below 2 M stored
-non-zeros (the 2.5k and 10k rows), both cores above (25k); solves on one thread.
+PARDISO threads followed femshell.solvers.linear as it was then: one thread below 2 M
+stored non-zeros (the 2.5k and 10k rows), both cores above (25k); solves on one thread.
+femshell now loads MKL's sequential layer unless MKL_THREADING_LAYER is set (bit-for-bit
+resumes), so a run today is single-threaded throughout; set MKL_THREADING_LAYER=GNU to
+measure the threaded rows.
 
 | vertices | unknowns | nnz | solver | first [s] | analysis [s] | refactor [s] | solve [s] |
 |---|---|---|---|---|---|---|---|
@@ -48,17 +51,17 @@ Inertia of K − σI with 10 eigenvalues below σ: (n − 10, 10, 0) at every si
 from __future__ import annotations
 
 import argparse
-import os
 import time
 
 import numpy as np
 import scipy.sparse as sp
 
 
-def rss_mb():
-    """Resident memory of this process in MB (Linux /proc)."""
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+def factor_mb(fac):
+    """Size of the factor's values in MB (non-zeros x 8 B; the indices come on top). The change of the
+    process's resident memory around a factorisation misses the peak and hides behind reused pages
+    (it printed 52, 19 and 1 MB for three factors of 3.5 M non-zeros each)."""
+    return fac.factor_nnz * 8 / 1e6
 
 
 def sphere_mesh(n_vertices, radius=30.0):
@@ -122,9 +125,8 @@ def bench(n_target, superlu_max, rows):
         for kind, matching, label in (("spd", True, "pardiso spd (mtype 2)"),
                                       ("symmetric_indefinite", True, "pardiso indefinite (mtype -2, matching)"),
                                       ("symmetric_indefinite", False, "pardiso indefinite (mtype -2, no matching)")):
-            m0 = rss_mb()
             fac, t_first = timed(factorize, K, kind, "pardiso", pardiso_matching=matching)
-            mem = rss_mb() - m0
+            mem = factor_mb(fac)
             t_analysis = fac.analysis_time
             t0 = time.perf_counter()
             fac.refactor(K2)
@@ -133,8 +135,8 @@ def bench(n_target, superlu_max, rows):
             record(label, fac, t_first, K2, t_ref)
             rows[-1]["mem_mb"] = mem
             rows[-1]["analysis"] = t_analysis
-            print(f"  {'':<38} analysis {t_analysis:.2f} s of the first; factor memory ~{mem:.0f} MB, "
-                  f"factor nnz {fac.factor_nnz / 1e6:.1f} M")
+            print(f"  {'':<38} analysis {t_analysis:.2f} s of the first; factor values {mem:.0f} MB "
+                  f"(nnz {fac.factor_nnz / 1e6:.1f} M x 8 B)")
             fac.free()
         # an indefinite matrix: shift past the 10 smallest eigenvalues
         ev = smallest_eigenvalues(K, k=11, return_vectors=False)
@@ -156,15 +158,14 @@ def bench(n_target, superlu_max, rows):
         print(f"  {'pypardiso default (mtype 11)':<38} first {t_first:7.2f} s  solve {t_solve:6.3f} s")
 
     if nv <= superlu_max:
-        m0 = rss_mb()
         fac, t_first = timed(factorize, K, "spd", "superlu")
-        mem = rss_mb() - m0
+        mem = factor_mb(fac)
         t0 = time.perf_counter()
         fac.refactor(K2)
         t_ref = time.perf_counter() - t0
         record("superlu symmetric mode (spd)", fac, t_first, K2, t_ref)
         rows[-1]["mem_mb"] = mem
-        print(f"  {'':<38} factor memory ~{mem:.0f} MB, factor nnz {fac.factor_nnz / 1e6:.1f} M")
+        print(f"  {'':<38} factor values {mem:.0f} MB (nnz {fac.factor_nnz / 1e6:.1f} M x 8 B)")
         fac.free()
 
 

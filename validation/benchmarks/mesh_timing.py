@@ -43,6 +43,8 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--all", action="store_true", help="also time the other generators at 25 000 vertices")
     args = ap.parse_args(argv)
+    if args.repeat < 1 or min(args.sizes) < 10:
+        ap.error(f"--repeat must be >= 1 and --sizes vertex counts >= 10, got {args.repeat} and {args.sizes}")
     print(f"{'mesh':34s} {'target':>8s} {'actual':>8s} {'error':>9s} {'time':>10s}")
     for n in args.sizes:
         row("sphere R=30", n, lambda: sphere(radius=30.0, n_vertices=n), args.repeat)
