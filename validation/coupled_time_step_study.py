@@ -11,7 +11,7 @@ the wall time gives the cost of each accuracy (a run's set-up included, and in t
 process also the element kernels' compilation, ~5 s: small against runs of 1-40 min).
 
 Each finished run's end state is saved in ``--states`` (an .npz per ds_max); running the command
-again reuses them, so it can be stopped between runs. Results go to a JSON (``--json``) and, with
+again reuses them, and a run stopped midway resumes from its checkpoint there. Results go to a JSON (``--json``) and, with
 ``--doc``, to the scenario's generated table on that page (:func:`markers`).
 
     .venv/bin/python validation/coupled_time_step_study.py --scenario propagation --n-vertices 1500 \\
@@ -46,19 +46,23 @@ def run(scenario, radius, n_vertices, t_final, ds_max, states: Path):
     if saved.exists():
         with np.load(saved) as z:
             return {k: (z[k] if z[k].ndim else z[k].item()) for k in z.files}
+    # a run in progress resumes from its own checkpoint (the small ds_max take 15-40 min)
+    checkpoint = saved.with_name(saved.stem + ".checkpoint.npz")
+    states.mkdir(parents=True, exist_ok=True)
     r = run_scenario(SCENARIOS[scenario], t_final=t_final, n_vertices=n_vertices, radius=radius,
-                     stepping={"ds_max": ds_max, "stationary_rate_c": 0.0}, log=print)
+                     stepping={"ds_max": ds_max, "stationary_rate_c": 0.0}, checkpoint=checkpoint, log=print)
     if r["status"] != "t_final":
         raise RuntimeError(f"ds_max = {ds_max}: the run ended with '{r['status']}' ({r['message']})")
-    out = {"ds_max": ds_max, "steps": r["steps"], "wall_s": r["wall_s"], "c": r["c"], "points": r["points"],
+    out = {"ds_max": ds_max, "steps": r["steps"], "wall_s": r["wall_s_total"], "c": r["c"], "points": r["points"],
            "vertex_area": vertex_areas(r["points"], r["triangles"]), "spot_radius": r["measures"].spot_radius,
            "n_spots": r["measures"].n_spots, "max_c": r["max_c"], "c_max": r["c_max"],
            "h0": model_of(SCENARIOS[scenario]).h0, "n_vertices": r["n_vertices"]}
-    states.mkdir(parents=True, exist_ok=True)
     partial = saved.with_name(saved.name + ".part")
     with open(partial, "wb") as f:     # renamed when complete: a stopped run leaves no broken state
         np.savez(f, **out)
     os.replace(partial, saved)
+    for p in (checkpoint, checkpoint.with_name(checkpoint.name + ".prev")):
+        p.unlink(missing_ok=True)
     return out
 
 
