@@ -34,10 +34,12 @@ from femshell.validation import wrinkle_scaling as ws
 from femshell.validation.disk_wrinkles import Disk, warm_up
 
 
-def sample(h, eps, resolution, seed):
+def sample(h, eps, resolution, seed, checkpoint=None):
+    """One seeded state; with ``checkpoint`` a sample stopped midway resumes there (its wall_s is then
+    this call's)."""
     d = Disk(h, ws.R2, resolution)
     t0 = time.perf_counter()
-    u, failures = ws.seeded_state(d, eps, ws.EPS_STEP, seed=seed)
+    u, failures = ws.seeded_state(d, eps, ws.EPS_STEP, seed=seed, checkpoint=checkpoint)
     n, rel = ws.rim_wavenumber(d, d.deflection(u))
     try:
         n_negative, why = int(d.n_negative(u, eps)), None
@@ -78,6 +80,8 @@ def main(argv=None):
     ap.add_argument("--json", type=Path, default=Path("validation/results/studies/wrinkle-seeds.json"),
                     help="records, new states added to it (default: the committed "
                          "validation/results/studies/wrinkle-seeds.json)")
+    ap.add_argument("--checkpoints", type=Path, default=Path("validation-out/wrinkle-seeds"),
+                    help="where a sample in progress is saved after every eps step (up to 15 min each)")
     a = ap.parse_args(argv)
     if not 0.0 < a.eps <= 1.0 or min(a.h) <= 0.0 or a.resolution < 2:
         ap.error("need 0 < eps <= 1, h > 0 and resolution >= 2")
@@ -94,7 +98,9 @@ def main(argv=None):
         for seed in a.seeds:
             if (h, a.eps, a.resolution, seed) in done:
                 continue
-            s = sample(h, a.eps, a.resolution, seed)
+            a.checkpoints.mkdir(parents=True, exist_ok=True)
+            ck = a.checkpoints / f"h{h:g}-eps{a.eps:g}-res{a.resolution}-seed{seed}.npz"
+            s = sample(h, a.eps, a.resolution, seed, checkpoint=ck)
             print(f"h={h:g} eps={a.eps:g} resolution {a.resolution} seed {seed}: n = {s['n']}, rim amplitude "
                   f"{s['rel']:.3g}, energy {s['energy']:.8g}, {s['n_negative']} negative eigenvalues "
                   f"({s['wall_s']:.0f} s){'; ' + s['error'] if s['error'] else ''}", flush=True)
@@ -105,6 +111,8 @@ def main(argv=None):
                 per_h, fit = summarise(samples)
                 atomic_write_json(a.json, {"study": "wrinkle-seeds", "R2": ws.R2, "rel_tol": ws.REL_TOL,
                                            "samples": samples, "per_h": per_h, "fit": fit})
+            for p in (ck, ck.with_name(ck.name + ".prev")):      # recorded: its checkpoint is not needed
+                p.unlink(missing_ok=True)
     per_h, fit = summarise(read_samples(a.json))     # with what another process added meanwhile
     for h, v in per_h.items():
         print(f"h={h}: n = {v['n']} (mean {v['n_mean']}, s.e. {v['n_sem']}), lowest energy n = {v['n_lowest_energy']}")
