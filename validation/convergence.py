@@ -175,6 +175,8 @@ def recommend(points, f, target):
     measured = [q for q in points if q[1] <= target]
     if measured and all(q[1] <= target for q in points if q[0] >= measured[0][0]):
         n, _, t, h, _ = measured[0]
+        if measured[0] is points[0] and "B" in f:      # its time may hold the process's JAX tracing: the fit's
+            t = f["B"] * n ** f["r"]
         return n, h, t, "measured"
     n = (f["A"] / target) ** (2.0 / f["p"])
     t = f["B"] * n ** f["r"] if "B" in f else None

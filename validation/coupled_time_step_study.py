@@ -52,7 +52,8 @@ def run(scenario, radius, n_vertices, t_final, ds_max, states: Path):
     r = run_scenario(SCENARIOS[scenario], t_final=t_final, n_vertices=n_vertices, radius=radius,
                      stepping={"ds_max": ds_max, "stationary_rate_c": 0.0}, checkpoint=checkpoint, log=print)
     if r["status"] != "t_final":
-        raise RuntimeError(f"ds_max = {ds_max}: the run ended with '{r['status']}' ({r['message']})")
+        raise RuntimeError(f"ds_max = {ds_max}: the run ended with '{r['status']}' ({r['message']}); its checkpoint "
+                           f"{checkpoint} resumes into the same end: delete it to start that run afresh")
     out = {"ds_max": ds_max, "steps": r["steps"], "wall_s": r["wall_s_total"], "c": r["c"], "points": r["points"],
            "vertex_area": vertex_areas(r["points"], r["triangles"]), "spot_radius": r["measures"].spot_radius,
            "n_spots": r["measures"].n_spots, "max_c": r["max_c"], "c_max": r["c_max"],

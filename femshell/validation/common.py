@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..solvers.linear import factorize
@@ -36,7 +38,7 @@ ORDER_FIT_MESHES = 4
 
 def finest_order(n_vertices, errors, meshes=ORDER_FIT_MESHES):
     """(p, k): :func:`observed_order` fitted to the k ≤ ``meshes`` finest meshes of a series."""
-    pairs = sorted(zip(n_vertices, errors))[-meshes:]
+    pairs = sorted((n, e) for n, e in zip(n_vertices, errors) if n > 0 and e > 0 and math.isfinite(e))[-meshes:]
     return (observed_order(*zip(*pairs)) if pairs else None), len(pairs)
 
 

@@ -232,7 +232,7 @@ def run(level: str = "quick", out_dir=None, log=None) -> list:
 
 def scenario_rows(sc: Scenario, r: dict) -> list:
     """Reported and toleranced rows of one finished scenario (see the module docstring)."""
-    nv, wall, m = r["n_vertices"], r["wall_s"], r["measures"]
+    nv, wall, m = r["n_vertices"], r.get("wall_s_total", r["wall_s"]), r["measures"]   # all calls of a resumed run
     p = f"{sc.name}: "
     rows = [
         Row(p + f"spots N_sp at t={r['t']:.4g} ({r['status']}; paper: {sc.paper})", m.n_spots, n_vertices=nv,

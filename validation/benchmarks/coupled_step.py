@@ -189,7 +189,7 @@ def instrument(loop, timers):
 
     newton = loop._newton
 
-    def timed_newton(u, *args, **kwargs):      # the snap after a fold passes max_iter= and residual_scale=
+    def timed_newton(u, *args, **kwargs):      # the snap after a fold passes max_iter=, residual_scale=, stall=
         t0 = time.perf_counter()
         h0 = timers.t["hessian"]
         e0 = timers.t["escape"]
@@ -413,14 +413,14 @@ def main():
         with open(a._out, "w") as f:
             json.dump(r, f)
         return
-    if a.json:      # checked before hours of runs, not after the first size
+    if any(n < 100 for n in a.sizes):
+        ap.error(f"--sizes must be vertex counts >= 100, got {a.sizes}")
+    if a.json and not a.from_json:      # checked before hours of runs, not after the first size
         from femshell.io import check_writable_dir
         try:
             check_writable_dir(Path(a.json).resolve().parent, "--json directory")
         except ValueError as exc:
             ap.error(str(exc))
-    if any(n < 100 for n in a.sizes):
-        ap.error(f"--sizes must be vertex counts >= 100, got {a.sizes}")
     results = []
     for p in a.from_json:
         with open(p) as f:
