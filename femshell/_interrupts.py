@@ -73,8 +73,7 @@ def interruptible():
     ...     raise_if_interrupted()          # nothing arrived: no exception
     """
     global _interrupted
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGTERM) is interrupt_handler):
+    if threading.current_thread() is not threading.main_thread() or run_handles_signals():
         yield
         return
     _interrupted = False

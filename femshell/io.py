@@ -66,7 +66,7 @@ from ._checks import triangle_array, vertex_indices
 
 __all__ = [
     "atomic_path", "atomic_write", "atomic_write_text", "atomic_write_json", "check_generated", "replace_generated",
-    "to_json_safe",
+    "to_json_safe", "finite_or_none", "temporary_of",
     "TimeSeriesWriter", "Frame", "read_pvd", "read_frame", "find_series",
     "save_checkpoint", "load_checkpoint", "CheckpointError",
     "write_summary", "SUMMARY_NAME",
@@ -83,6 +83,36 @@ _HEADER_KEY = "__femshell_header__"
 def _tmp_name(path: Path) -> Path:
     suffix = "".join(path.suffixes[-1:])
     return path.with_name(f".{path.name}.tmp-{os.getpid()}-{secrets.token_hex(4)}{suffix}")
+
+
+_TEMPORARY = re.compile(r"\.(?P<target>.+)\.tmp-(?P<pid>\d+)-[0-9a-f]{8}(\.\w+)?")
+
+
+def temporary_of(name: str):
+    """(target file name, writer's pid) of a temporary file named as :func:`atomic_path` names
+    them, or None for any other name: what a writer killed mid-write leaves behind.
+
+    >>> temporary_of(".summary.json.tmp-123-0a1b2c3d.json"), temporary_of("summary.json")
+    (('summary.json', 123), None)
+    """
+    m = _TEMPORARY.fullmatch(name)
+    return (m["target"], int(m["pid"])) if m else None
+
+
+def finite_or_none(v):
+    """``v`` for a JSON file: numpy scalars as Python numbers, NaN and infinity as None (null);
+    other values unchanged.
+
+    >>> finite_or_none(float("nan")), finite_or_none(np.float64(2.5)), finite_or_none(np.int64(3))
+    (None, 2.5, 3)
+    """
+    if isinstance(v, (float, np.floating)):
+        return float(v) if math.isfinite(v) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    return v
 
 
 def _fsync_dir(directory: Path) -> None:
@@ -496,8 +526,7 @@ class TimeSeriesWriter:
             if self._pattern.fullmatch(p.name) and (all_frames or p.name not in listed):
                 with contextlib.suppress(OSError):
                     p.unlink()
-            elif (p.name.startswith((f".{self.name}_", f".{self.pvd_path.name}.tmp-"))
-                  and ".tmp-" in p.name):
+            elif (tmp := temporary_of(p.name)) and (self._pattern.fullmatch(tmp[0]) or tmp[0] == self.pvd_path.name):
                 with contextlib.suppress(OSError):
                     p.unlink()   # temporary file of a killed writer
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from femshell.analysis import vertex_areas
-from femshell.io import atomic_write_json, check_generated, check_writable_dir, replace_generated
+from femshell.io import atomic_write_json, check_generated, check_writable_dir, finite_or_none, replace_generated
 from femshell.validation.sphere_patterns import SCENARIOS, model_of, run_scenario
 
 
@@ -81,20 +81,15 @@ def compare(runs):
                      "n_spots": int(r["n_spots"]), "spot_radius": r["spot_radius"], "max_c": r["max_c"],
                      "error_c": float(dc.max()), "error_c_rms": float(np.sqrt(weight @ dc**2)),
                      "error_x": float(dx.max()), "error_x_rms": float(np.sqrt(weight @ dx**2)),
-                     "error_radius": _finite_or_none(abs(r["spot_radius"] / ref["spot_radius"] - 1.0))})
-        rows[-1]["spot_radius"] = _finite_or_none(r["spot_radius"])    # no spot: NaN, written as null
+                     "error_radius": finite_or_none(abs(r["spot_radius"] / ref["spot_radius"] - 1.0))})
+        rows[-1]["spot_radius"] = finite_or_none(r["spot_radius"])    # no spot: NaN, written as null
     for key in ("error_c", "error_c_rms", "error_x", "error_x_rms", "error_radius"):
         for a, b in zip(rows, rows[1:]):
             ok = a[key] is not None and b[key] is not None and a[key] > 0 and b[key] > 0
             b[f"order_{key[6:]}"] = math.log(a[key] / b[key]) / math.log(a["ds_max"] / b["ds_max"]) if ok else None
-    reference = {k: _finite_or_none(float(ref[k])) for k in ("ds_max", "wall_s", "spot_radius", "max_c")}
+    reference = {k: finite_or_none(float(ref[k])) for k in ("ds_max", "wall_s", "spot_radius", "max_c")}
     reference.update(steps=int(ref["steps"]), n_spots=int(ref["n_spots"]))
     return rows, reference
-
-
-def _finite_or_none(v):
-    v = float(v)
-    return v if math.isfinite(v) else None
 
 
 def _num(v, fmt):
@@ -154,7 +149,7 @@ def main():
     for ds in sorted(args.ds_max, reverse=True):
         r = run(args.scenario, args.radius, args.n_vertices, args.t_final, ds, args.states)
         print(f"ds_max {ds:g}: {r['steps']} steps, {r['wall_s']:.1f} s, {r['n_spots']} spot(s), "
-              f"radius {_num(_finite_or_none(r['spot_radius']), '.4f')}, max c {r['max_c']:.5f}", flush=True)
+              f"radius {_num(finite_or_none(r['spot_radius']), '.4f')}, max c {r['max_c']:.5f}", flush=True)
         runs.append(r)
     rows, reference = compare(runs)
     meta = {"scenario": args.scenario, "radius": args.radius, "n_vertices": runs[0]["n_vertices"],

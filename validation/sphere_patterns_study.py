@@ -40,7 +40,7 @@ import sys
 from pathlib import Path
 
 from femshell.analysis import polar_profile
-from femshell.io import atomic_write_json, check_generated, check_writable_dir, replace_generated
+from femshell.io import atomic_write_json, check_generated, check_writable_dir, finite_or_none, replace_generated
 from femshell.validation.sphere_patterns import SCENARIOS, model_of, run_scenario
 from femshell.viz import side_view, top_view
 
@@ -59,7 +59,6 @@ def threshold_curvature(params) -> float | None:
 
 def record(r: dict, radius: float, wall_budget: float, params) -> dict:
     m = r["measures"]
-    num = (lambda x: None if x is None or not math.isfinite(x) else float(x))
     pc, ph = (polar_profile(r["points"], v, 36, triangles=r["triangles"]) for v in (r["c"], r["H"]))
     return {"scenario": r["scenario"], "paper": SCENARIOS[r["scenario"]].paper, "radius": radius,
             "n_vertices": r["n_vertices"], "status": r["status"], "message": r["message"], "t": r["t"],
@@ -68,13 +67,15 @@ def record(r: dict, radius: float, wall_budget: float, params) -> dict:
             "wall_s": r.get("wall_s_total", r["wall_s"]), "wall_s_last_call": r["wall_s"],
             "wall_budget_s": wall_budget, "steps": r["steps"],
             "n_spots": m.n_spots, "n_ridges": m.n_ridges, "kind": m.kind,
-            "fraction_patterned": m.fraction_patterned, "spot_radius": num(m.spot_radius),
-            "spacing": num(m.spacing), "max_c": r["max_c"], "c_star": r["c_star"], "c_max": r["c_max"],
+            "fraction_patterned": m.fraction_patterned, "spot_radius": finite_or_none(m.spot_radius),
+            "spacing": finite_or_none(m.spacing), "max_c": r["max_c"], "c_star": r["c_star"], "c_max": r["c_max"],
             "max_H": r["max_H"], "negative_c": r["negative_c"], "non_finite": r["non_finite"],
-            "saddles": r["saddles"], "fixed_point": num(r["fixed_point"]),
-            "regions": [{"area": g.area, "elongation": num(g.elongation), "kind": g.kind} for g in m.regions],
-            "profile": {"theta_deg": [float(math.degrees(t)) for t in pc.theta], "c": [num(v) for v in pc.mean],
-                        "H": [num(v) for v in ph.mean], "H_threshold": threshold_curvature(params)}}
+            "saddles": r["saddles"], "fixed_point": finite_or_none(r["fixed_point"]),
+            "regions": [{"area": g.area, "elongation": finite_or_none(g.elongation), "kind": g.kind}
+                        for g in m.regions],
+            "profile": {"theta_deg": [float(math.degrees(t)) for t in pc.theta],
+                        "c": [finite_or_none(v) for v in pc.mean], "H": [finite_or_none(v) for v in ph.mean],
+                        "H_threshold": threshold_curvature(params)}}
 
 
 def profile_plot(rec: dict, path: Path, title: str):

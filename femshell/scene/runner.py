@@ -81,8 +81,6 @@ RUN_DIRS = ("pictures", "special")
 #: femshell's own files inside RUN_DIRS and its frames (a user's files there are left alone)
 RUN_DIR_FILES = re.compile(r"(top|side|bifurcation)(_\d{6}|_last)?\.png|(primary|switched)-\d+-\w+\.vtu")
 FRAME = re.compile(rf"{SERIES}_\d{{6}}\.vtu")
-#: a temporary file of femshell.io's atomic writes (.<target>.tmp-<pid>-<hex>[.ext]); a killed writer leaves it
-TEMPORARY = re.compile(r"\.(?P<target>.+)\.tmp-(?P<pid>\d+)-[0-9a-f]{8}(\.\w+)?")
 #: keys that may change between a run and its --resume
 RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop"),
                      ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol")}
@@ -106,16 +104,6 @@ def _hms(sec):
     h, r = divmod(sec, 3600)
     m, s = divmod(r, 60)
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
-
-
-def _finite_or_none(v):
-    if isinstance(v, (float, np.floating)):
-        return float(v) if math.isfinite(v) else None
-    if isinstance(v, (np.integer,)):
-        return int(v)
-    if isinstance(v, np.bool_):
-        return bool(v)
-    return v
 
 
 # ----------------------------------------------------------------------------- the run directory
@@ -226,8 +214,8 @@ class RunDir:
             if not root.is_dir():
                 continue
             for p in root.iterdir():
-                m = TEMPORARY.fullmatch(p.name)
-                if m and own(m["target"]) and p.is_file() and not _alive(int(m["pid"])):
+                tmp = fio.temporary_of(p.name)
+                if tmp and own(tmp[0]) and p.is_file() and not _alive(tmp[1]):
                     with contextlib.suppress(OSError):
                         p.unlink()
 
@@ -655,7 +643,7 @@ def _clean(obj):
         return [_clean(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return _clean(obj.tolist())
-    return _finite_or_none(obj)
+    return fio.finite_or_none(obj)
 
 
 def _version():

@@ -198,22 +198,25 @@ def run(level, out_dir=None, log=None):
             rows.append(Row(f"unfinished runs (failed or stopped early) left out of the sweep of {label} at {fixed}",
                             len(unfinished)))
         if not math.isnan(p):       # no NaN in a result file: the count row says why there is no exponent
-            err = ("undetermined with 2 states" if math.isnan(sp)
-                   else f"{sp:.2g} from {len(spotted)} states, {len(spotted) - 2} degree(s) of freedom")
-            rows.append(Row(f"fitted exponent of the spot radius vs {label} at {fixed} (+- {err}; paper {ref:g})", p,
-                            ref))
+            rows.append(Row(f"fitted exponent of the spot radius vs {label} at {fixed} (+- "
+                            f"{_uncertainty(sp, len(spotted))}; paper {ref:g})", p, ref))
         multi = [k for k in spotted if states[k]["measures"].n_spots >= 2]
         if len(multi) == len(spotted) and not math.isnan(p):
             q, sq = fit_exponent(x, [states[k]["measures"].spacing for k in spotted])
-            err = ("undetermined with 2 states" if math.isnan(sq)
-                   else f"{sq:.2g} from {len(spotted)} states, {len(spotted) - 2} degree(s) of freedom")
-            rows.append(Row(f"fitted exponent of the spot spacing vs {label} at {fixed} (+- {err}; paper {ref:g})", q,
-                            ref))
+            rows.append(Row(f"fitted exponent of the spot spacing vs {label} at {fixed} (+- "
+                            f"{_uncertainty(sq, len(spotted))}; paper {ref:g})", q, ref))
         else:
             rows.append(Row(f"states of this sweep with a single spot (spacing = sphere minus spot: no spacing "
                             f"exponent) ({label})", len(spotted) - len(multi)))
     _LAST.update(states=states, sweeps=sweeps, checks=checks)
     return rows
+
+
+def _uncertainty(sigma, n_states):
+    """The ± of a fitted exponent, with the states it comes from."""
+    if math.isnan(sigma):
+        return "undetermined with 2 states"
+    return f"{sigma:.2g} from {n_states} states, {n_states - 2} degree(s) of freedom"
 
 
 def state_rows(key, r):
