@@ -400,6 +400,7 @@ def test_ctrl_c_mid_step_ends_on_the_last_accepted_state_checkpointed(ball, spot
     assert len(saved) == 1 and saved[0]["step"] == 3 and np.array_equal(saved[0]["c"], loop.c)
 
 
+@pytest.mark.usefixtures("ctrl_c_raises")
 def test_ctrl_c_while_a_step_commits_finishes_the_step_then_stops(ball, spot_run, monkeypatch):
     """A real SIGINT between the assignments of an accepted step (c and u new, H not yet) is held:
     the step is committed whole, reported, checkpointed, and then the run stops."""

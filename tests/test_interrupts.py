@@ -6,6 +6,8 @@ import pytest
 
 from femshell._interrupts import committing, interrupt_handler, interruptible, raise_if_interrupted, step_scope
 
+pytestmark = pytest.mark.usefixtures("ctrl_c_raises")
+
 
 def test_a_signal_in_a_commit_is_raised_at_the_end_of_the_step():
     done = []

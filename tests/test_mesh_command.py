@@ -11,7 +11,7 @@ from femshell.mesh import read_mesh
 
 
 def _run(*args):
-    return subprocess.run([sys.executable, "-m", "femshell.cli", *args], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "femshell.cli", *args], capture_output=True, text=True, timeout=300)
 
 
 def test_sphere_command(tmp_path):

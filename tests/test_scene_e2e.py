@@ -189,6 +189,7 @@ def test_ctrl_c_checkpoints_and_resumes(uninterrupted, tmp_path, monkeypatch):
     assert_same_run(uninterrupted, out)
 
 
+@pytest.mark.usefixtures("ctrl_c_raises")
 def test_ctrl_c_while_a_frame_is_written_keeps_that_frame(uninterrupted, tmp_path, monkeypatch):
     """SIGINT arriving while step 2's frame is written: the frame and the checkpoint of step 2 are
     written before the run stops, and the resumed run has every frame of the uninterrupted one."""
@@ -215,6 +216,7 @@ def test_ctrl_c_while_a_frame_is_written_keeps_that_frame(uninterrupted, tmp_pat
     assert [t for t, _ in read_pvd(out / "series.pvd")] == [t for t, _ in read_pvd(uninterrupted / "series.pvd")]
 
 
+@pytest.mark.usefixtures("ctrl_c_raises")
 def test_ctrl_c_while_a_finished_run_writes_its_results_keeps_them_consistent(tmp_path, monkeypatch, capsys):
     """A Ctrl-C while summary.json was written left the previous one (12 steps behind the checkpoint, seen
     by interrupting runs at random); one while the pictures were drawn lost the summary too."""
@@ -296,9 +298,12 @@ def test_temporaries_of_a_killed_writer_are_removed(tmp_path):
     out = tmp_path / "run"
     assert run("default", out, extra=["--max-steps", "1"], overrides=SPHERE_TINY) == 0
     (out / "pictures").mkdir(exist_ok=True)
-    left = [out / ".checkpoint.npz.tmp-99999-0123abcd.npz", out / ".summary.json.tmp-99999-0123abcd.json",
-            out / "pictures" / ".top.png.tmp-99999-0123abcd.png"]
-    mine = [out / ".notes.txt.tmp-99999-0123abcd.txt", out / "pictures" / ".mine.png.tmp-99999-0123abcd.png",
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])     # the id of a process that has ended
+    gone.wait()
+    dead = gone.pid
+    left = [out / f".checkpoint.npz.tmp-{dead}-0123abcd.npz", out / f".summary.json.tmp-{dead}-0123abcd.json",
+            out / "pictures" / f".top.png.tmp-{dead}-0123abcd.png"]
+    mine = [out / f".notes.txt.tmp-{dead}-0123abcd.txt", out / "pictures" / f".mine.png.tmp-{dead}-0123abcd.png",
             out / "pictures" / f".top_000003.png.tmp-{os.getpid()}-0123abcd.png"]    # its writer still runs
     for p in left + mine:
         p.write_text("x")

@@ -1,0 +1,15 @@
+"""Fixtures shared by several test modules."""
+
+import signal
+
+import pytest
+
+
+@pytest.fixture
+def ctrl_c_raises():
+    """SIGINT raises KeyboardInterrupt during the test, as in a terminal, also when pytest itself was
+    started with SIGINT ignored (a background job of a shell script, e.g. ``.ci/run &``): Python then
+    keeps the inherited SIG_IGN, and a test that presses Ctrl-C in-process would see nothing happen."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
