@@ -1087,8 +1087,8 @@ class CoupledLoop:
     def _follow_stationarity(self, c_old, x_old, h: float):
         """Rates of change of c and of the shape over the accepted step of length h, and the stationarity counters.
 
-        rate_c = max|c − c_old| / (h c_scale), rate_x = max|x − x_old| / (h L) with c_scale the
-        largest |c| (at least 1 % of c_max) and L the mesh's length scale.
+        rate_c = max|c − c_old| / (h c_scale), rate_x = max|x − x_old| / (h h0) with c_scale the
+        largest |c| (at least 1 % of c_max) and h0 the shell's thickness (the length of the model).
         """
         st, p = self.stepping, self.params
         c_scale = max(float(np.max(np.abs(self.c))) if len(self.c) else 0.0,

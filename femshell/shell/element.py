@@ -29,7 +29,8 @@ altitude onto it. Only the component of :math:`n_e` across the edge enters, whic
 is why one angle per edge suffices. For small deflections :math:`w` this is the
 Morley element (exact for quadratic :math:`w`), which converges on unstructured
 meshes, unlike hinge (dihedral-angle) springs. With outward normals a sphere of
-radius R has :math:`b = a/R` (positive).
+radius R has :math:`b \approx a/R` (positive; exact only in the limit of fine meshes, as the
+mid-edge normals of a drawn polyhedron are the mean of its face normals).
 
 **Energy** (design.md 1.2, St Venant–Kirchhoff in metric form):
 
@@ -56,8 +57,9 @@ resolution limit: :func:`femshell.geometry.fold_angles` shows it).
 Exact gradients and Hessians come from JAX automatic differentiation of
 :func:`element_energy`, in float64, vectorised over all elements.
 
-**Split Hessian.** W is a quadratic function of the six numbers
-:math:`z = (a_{11}, a_{12}, a_{22}, q_0, q_1, q_2)`, :math:`q_k = s_k h_k` (b is linear in q).
+**Split Hessian.** W depends on the unknowns only through the six numbers
+:math:`z = (a_{11}, a_{12}, a_{22}, q_0, q_1, q_2)`, :math:`q_k = s_k h_k` (b is linear in q;
+W is quadratic in z for St Venant–Kirchhoff, not for neo-Hookean).
 The metric entries depend only on the 9 own-vertex coordinates, quadratically, and
 :math:`q_k` only on the 13 unknowns :math:`y_k = (x_0, x_1, x_2, p_k, \theta_k)`, so
 

@@ -38,6 +38,9 @@ class Material:
 
     law : "svk" (St Venant–Kirchhoff, design.md 1.2) or "neo-hookean" (the same at small
     strain, elliptic under any compression; :mod:`femshell.shell.element`).
+
+    The default ν = 0.3 is the engineering benchmarks' value; the paper's cell sheets use ν = 0.5
+    (design.md 1.5), the default of the scenes and of :class:`femshell.coupled.MechanochemicalModel`.
     """
 
     E: float = 1.0
