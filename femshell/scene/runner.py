@@ -1096,9 +1096,11 @@ class ContinuationRunner(BaseRunner):
         out = {"amplitude": amp}
         if self.flat and self.r2 is not None:
             from ..analysis import count_wrinkles
-            r = min(self.r2, 0.98 * float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max()))
+            # counted as the disk-wrinkles validation case counts them: just outside the grown region, and a
+            # shifted or tilted dome (k = 1) is no wrinkle
+            r = min(1.15 * self.r2, 0.98 * float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max()))
             try:
-                out["wrinkles"] = count_wrinkles(self.mesh.points, w, r, triangles=self.mesh.triangles, min_mode=1,
+                out["wrinkles"] = count_wrinkles(self.mesh.points, w, r, triangles=self.mesh.triangles, min_mode=2,
                                                 rel_tol=0.05)
             except ValueError:
                 out["wrinkles"] = -1
