@@ -286,6 +286,8 @@ def to_json_safe(obj, where: str = "", _path: str = ""):
             elif not isinstance(k, str):
                 raise TypeError(f"{label(_path)} has a key {k!r} of type {type(k).__name__}; "
                                 "JSON keys must be strings")
+            if k in out:        # {1: .., "1": ..}: json.dumps would write the key twice, a reader keeps one
+                raise ValueError(f"{label(_path)} has two keys that are both {k!r} in JSON")
             out[k] = to_json_safe(v, where, _key_path(_path, k))
         return out
     if isinstance(obj, np.ndarray):

@@ -566,6 +566,7 @@ def render_run(out_dir, field: str | None = None, *, series: str | None = None, 
         if not np.all(np.isfinite(v)):
             raise ValueError(f"{entries[i][1]}: the field to draw holds NaN or infinity")
         lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+    lo, hi = _clim(np.array([lo, hi]), None)     # the snap of a single picture's range (1e-108 -> 0)
     pic_dir = out_dir / pictures_dir
     pic_dir.mkdir(parents=True, exist_ok=True)
     written, tops = [], []

@@ -71,6 +71,8 @@ def test_json_refuses_nan_and_names_the_key(tmp_path):
         write_summary(tmp_path, {"final": {"amplitude": np.float64(-np.inf)}})
     with pytest.raises(ValueError, match=r"summary\.json: c_max\[1\] is inf"):
         write_summary(tmp_path, {"c_max": np.array([0.1, np.inf])})
+    with pytest.raises(ValueError, match=r"summary\.json: counts has two keys that are both '1'"):
+        write_summary(tmp_path, {"counts": {1: 3, "1": 4}})     # json.dumps writes both, a reader keeps one
     assert json.loads(p.read_text()) == {"old": 1}   # untouched
 
     out = write_summary(tmp_path, {"steps": np.int64(3), "wall_s": np.float32(1.5), "ok": np.bool_(True),

@@ -75,6 +75,18 @@ def test_render_run(tmp_path, small_sphere):
     assert {p: p.read_bytes() for p in (tmp_path / "pictures").iterdir()} == before
 
 
+def test_render_run_colour_range_is_the_one_a_single_picture_gets(tmp_path, small_sphere, monkeypatch):
+    # c of order 1e-108 at the start of a run: the colour bar of every frame starts at 0, as top_view's own
+    m = small_sphere
+    w = TimeSeriesWriter(tmp_path, m)
+    for k in range(2):
+        w.write(float(k), m.points, {"c": np.full(m.n_vertices, 1e-108) + k * (m.points[:, 2] > 0)})
+    seen = []
+    monkeypatch.setattr(viz, "top_view", lambda *a, clim=None, **k: seen.append(clim))
+    viz.render_run(tmp_path, movie=False)
+    assert seen == [(0.0, 1.0)] * 2
+
+
 def test_bifurcation_diagram(tmp_path):
     lam = np.linspace(0, 2, 41)
     rows = [{"parameter": float(l), "amplitude": 0.0, "stable": bool(l < 1), "branch": "trivial"} for l in lam]
