@@ -3,7 +3,8 @@
 The staggered loop (design.md 1.4) adapts dt so that the stretch s changes by at most
 ``ds_max`` per step (and keeps the staggering stable, ``feedback_amplification``). The sphere
 scenarios use ds_max = 0.05. This study runs one scenario from the same seed to the same time T
-with ds_max = 0.2 … 0.0025 and measures each end state against the run with the smallest ds_max
+with a series of ds_max (the committed studies: 0.2 … 0.00625 for `propagation`, 0.1 … 0.0125 for
+`uniform-thickness`) and measures each end state against the run with the smallest ds_max
 (the reference; no closed form exists): the largest difference of c over c_max = w Hs/β, the
 largest vertex distance over h0 (and both as area-weighted root-mean-square differences), and the
 spot radius of the paper's formula. Their decrease with ds_max is the loop's observed order in time;
@@ -15,7 +16,7 @@ again reuses them, and a run stopped midway resumes from its checkpoint there. R
 ``--doc``, to the scenario's generated table on that page (:func:`markers`).
 
     .venv/bin/python validation/coupled_time_step_study.py --scenario propagation --n-vertices 1500 \\
-        --t-final 6 --ds-max 0.2 0.1 0.05 0.02 0.01 0.005 0.0025 \\
+        --t-final 6 --ds-max 0.2 0.1 0.05 0.025 0.0125 0.00625 \\
         [--json validation/results/studies/coupled-time-step.json] [--doc docs/accuracy-and-cost.md]
 """
 

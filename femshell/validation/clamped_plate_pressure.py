@@ -2,8 +2,8 @@
 
 The meshes have no vertex at the centre (the nearest is 0.006-0.09 from it), so the deflection
 of that vertex is compared with the theory's w(r0) there, not with the centre value: at
-r0 = 0.0057 the simply supported plate's w(r0)/w(0) − 1 = −1.245 r0² = −4e-5, more than the
-finest mesh's error.
+r0 = 0.0057 the simply supported plate's w(r0)/w(0) − 1 = −1.245 r0² = −4e-5, more than half
+the finest mesh's error (6.8e-5).
 """
 
 from __future__ import annotations

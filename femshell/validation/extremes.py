@@ -16,8 +16,8 @@ Each row has a pass criterion (a tolerance) unless it only reports a measurement
    coupled loop). Reported: the stretch reached with Newton converging to rtol 1e-8, and
    whether a Newton failure stopped it (earlier versions stopped near s ≈ 1.5, where Newton
    converged only linearly along a soft, near-isometric mode of the free cap; the full-level
-   run of 2026-11-23 reaches s = 2). Pass: every accepted state is a stable minimum.
-3. **Steep sigmoid** Λ(c), s(c), ds/dc for b = 1 … 1000 and c − c* = ±1e3 under
+   runs since 2026-11-23 reach s = 2). Pass: every accepted state is a stable minimum.
+3. **Steep sigmoid** Λ(c), s(c), ds/dc for b = 1 … 1000 and c − c* = ±2e3 under
    ``np.errstate(over/invalid/divide="raise")``. Pass: 0 non-finite values, 0 violations of
    monotonicity and bounds.
 4. **Reaction–diffusion** with w up to 1e3, D up to 1e2, dt up to 100 on a sphere

@@ -8,7 +8,7 @@ isotropic eigenstrain, then the Morley-plate eigenproblem K_b w = mu K_g(N) w.
   inside r < R2 (same t) has N = -E t g (1 - R2^2/R1^2) / 2 inside (Lamé, plane stress).
 * Clamped circular plate (radius a) under uniform growth g: g_c = k^2 t^2 / (12 (1+nu) a^2)
   with J_{n+1}(k) = 0 for n azimuthal waves (n >= 1 double): k^2 = 14.682 (n=0),
-  26.375 (n=1), 40.707 (n=2), 49.218 (n=0, second radial), 57.583 (n=3).
+  26.375 (n=1), 40.706 (n=2), 49.218 (n=0, second radial), 57.583 (n=3).
 * Simply supported circular plate: axisymmetric mode, k J0(k) = (1 - nu) J1(k)
   (k^2 = 4.198 for nu = 0.3). The Babuška-paradox limit of polygonal domains would be
   J0(k) = 0 (k^2 = 5.783): the rows show that the Morley element does not go there.

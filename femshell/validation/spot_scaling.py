@@ -11,7 +11,7 @@ equilibrium at every step, design.md 1.4) on a sphere of radius ``radius`` from 
 pole, to ``t_final`` or a stationary pattern (or ``wall_time`` seconds per call). With
 volume-conserving thickness the seeded spot does not spread into a pattern (docs/sphere-patterns.md):
 the runs end with one spot, the seeded bulge. Without diffusion its size is set by the mesh
-(R = 15, c* = 0.1: spot radius 4.20 at 2 697 vertices, 2.63 at 6 265), so an exponent fitted there
+(R = 15, c* = 0.1: spot radius 4.21 at 2 697 vertices, 2.63 at 6 265), so an exponent fitted there
 would measure the mesh. With the paper's D = 1.5 (its large-spots scenario) the spot converges
 (radius 4.62 and 4.63 at 4 007 and 6 265 vertices, t = 40; 4.62 and 4.63 at t = 100 and at the
 stationary end; 5.35 at 2 697), so the sweeps are made at D = 1.5, c* = 0.1 and the other
