@@ -125,9 +125,9 @@ def test_pardiso_refactor_reuses_analysis():
 @pytest.mark.skipif("pardiso" not in available_backends(), reason="pardiso unavailable")
 def test_a_collected_pardiso_factor_is_freed_at_once_or_in_a_run_at_the_next_factorisation(monkeypatch):
     # in a run, not in the garbage collector's callback, where a Ctrl-C's exception would be dropped
-    from femshell._interrupts import interruptible
     import gc
 
+    from femshell._interrupts import interruptible
     from femshell.solvers import linear
 
     gc.collect()                                  # factors left by earlier tests in this process: freed now,
