@@ -497,22 +497,34 @@ def polar_profile(points, values, n_bins: int = 18, *, triangles=None, pole=(0.0
 # ----------------------------------------------------------------------------- wrinkles (disk test)
 
 def _sample_on_mesh(xy, tri, v, q):
-    """Linear interpolation of a vertex field at points q (k, 2) of a flat triangulation; NaN outside."""
+    """Linear interpolation of a vertex field at points q (k, 2) of a flat triangulation; NaN outside.
+
+    The points are taken in runs of 16 (neighbours on a circle), each tested only against the triangles
+    whose bounding box meets the run's: the search over all triangles cost 1.25 s per call at 50 000."""
     a, b, c = xy[tri[:, 0]], xy[tri[:, 1]], xy[tri[:, 2]]
     det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    box_lo, box_hi = np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
+    margin = 1e-9 * float(np.ptp(xy, axis=0).max())    # the inside test below admits points 1e-12 outside
     out = np.full(len(q), np.nan)
     tol = -1e-12
-    for start in range(0, len(q), 64):
-        p = q[start:start + 64, None, :]                       # (k, 1, 2)
-        l1 = ((p[..., 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (p[..., 1] - a[:, 1])) / det
-        l2 = ((b[:, 0] - a[:, 0]) * (p[..., 1] - a[:, 1]) - (p[..., 0] - a[:, 0]) * (b[:, 1] - a[:, 1])) / det
+    for start in range(0, len(q), 16):
+        run = q[start:start + 16]
+        lo, hi = run.min(axis=0) - margin, run.max(axis=0) + margin
+        near = np.flatnonzero(np.all(box_hi >= lo, axis=1) & np.all(box_lo <= hi, axis=1))
+        if not len(near):
+            continue
+        an, bn, cn, dn = a[near], b[near], c[near], det[near]
+        p = run[:, None, :]                                     # (k, 1, 2)
+        l1 = ((p[..., 0] - an[:, 0]) * (cn[:, 1] - an[:, 1]) - (cn[:, 0] - an[:, 0]) * (p[..., 1] - an[:, 1])) / dn
+        l2 = ((bn[:, 0] - an[:, 0]) * (p[..., 1] - an[:, 1]) - (p[..., 0] - an[:, 0]) * (bn[:, 1] - an[:, 1])) / dn
         l0 = 1.0 - l1 - l2
-        inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)      # (k, m)
+        inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)      # (k, candidates)
         has = inside.any(axis=1)
-        t = np.argmax(inside, axis=1)
-        r = np.arange(len(t))
-        val = l0[r, t] * v[tri[t, 0]] + l1[r, t] * v[tri[t, 1]] + l2[r, t] * v[tri[t, 2]]
-        out[start:start + 64] = np.where(has, val, np.nan)
+        j = np.argmax(inside, axis=1)
+        r = np.arange(len(j))
+        t = tri[near[j]]
+        val = l0[r, j] * v[t[:, 0]] + l1[r, j] * v[t[:, 1]] + l2[r, j] * v[t[:, 2]]
+        out[start:start + 16] = np.where(has, val, np.nan)
     return out
 
 
