@@ -861,8 +861,12 @@ class StaticRunner(BaseRunner):
         self.prev = None
         self.last = None
         self._set(0.0)
+        from ..solvers.linear import Refactorizer
+
+        # one pair for every load step: the pattern's symbolic analysis is done once per run, not per step
+        factorizers = (Refactorizer(so["backend"]), Refactorizer(so["backend"]))
         self.newton = dict(rtol=so["newton_rtol"] or 1e-8, max_iter=so["newton_max_iter"] or 60,
-                           backend=so["backend"], stable=so["stable"])
+                           backend=so["backend"], stable=so["stable"], factorizers=factorizers)
 
     def settle(self):
         self._set(self.mu)

@@ -494,54 +494,63 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
         g = problem.gradient(u)
         return _result(u, False, 0, problem.energy(u), float(np.linalg.norm(g)), 1.0, None, [], {})
 
-    previous = None  # (load factor, state) of the converged step before, for the secant predictor
-    out = []
-    for target in factors:
-        interval = target - current
-        min_step = abs(interval) * 0.5 ** max_cuts * (1 - 1e-12)
-        step = interval
-        while True:
-            trial = current + step
-            if step != 0 and trial == current:
-                problem.load_factor = current
-                raise NewtonError(f"load step from {current:.17g} towards {target:.6g} is below the float resolution "
-                                  f"there (step {step:.3g}): it cannot be cut further", last_converged())
-            problem.load_factor = trial
-            start = u
-            if previous is not None and previous[0] != current:
-                # secant predictor: along a smooth path this lands near the next equilibrium,
-                # sparing the damped iterations a large-rotation step needs from the last state
-                start = u + (trial - current) / (current - previous[0]) * (u - previous[1])
-                if not np.isfinite(problem.energy(start)):
-                    start = u
-            try:
-                res = minimize(problem, start, log=None, **newton_options)
-            except BaseException as exc:
-                if not isinstance(exc, NewtonError):
-                    problem.load_factor = current     # an error of another kind: leave the last converged factor
-                    raise
-                if abs(step) * 0.5 <= min_step:    # (<=: a step of 0, to a factor equal to the start, ends too)
+    own = newton_options.get("factorizers") is None
+    if own:     # one pair for all the steps: the pattern's symbolic analysis is done once, not per solve
+        backend = newton_options.get("backend", "auto")
+        newton_options = {**newton_options, "factorizers": (Refactorizer(backend), Refactorizer(backend))}
+    try:
+        previous = None  # (load factor, state) of the converged step before, for the secant predictor
+        out = []
+        for target in factors:
+            interval = target - current
+            min_step = abs(interval) * 0.5 ** max_cuts * (1 - 1e-12)
+            step = interval
+            while True:
+                trial = current + step
+                if step != 0 and trial == current:
                     problem.load_factor = current
-                    raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed, and the step cannot be "
-                                      f"cut further (max_cuts = {max_cuts}: not below 2**-{max_cuts} of the interval "
-                                      f"to {target:.6g}; last converged load factor {current:.6g}): {exc}", last_converged())
-                step *= 0.5
-                if log:
-                    log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
-                continue
-            previous = (current, u)
-            u, current, last = res.u, trial, res
-            if hasattr(problem, "accept"):
-                problem.accept(u)
-            if abs(current - target) <= 1e-14 * max(1.0, abs(target)):
-                break
-            # a converged step earns one doubling back, not the whole remaining interval at once: a
-            # stretch that needs many small steps would otherwise pay a failed solve for every one
-            remaining = target - current
-            step = remaining if abs(2.0 * step) >= abs(remaining) else 2.0 * step
-        if log:
-            log(f"  load factor {target:.6g}: {res.summary()}")
-        if callback:
-            callback(target, res)
-        out.append(res)
-    return out
+                    raise NewtonError(f"load step from {current:.17g} towards {target:.6g} is below the float resolution "
+                                      f"there (step {step:.3g}): it cannot be cut further", last_converged())
+                problem.load_factor = trial
+                start = u
+                if previous is not None and previous[0] != current:
+                    # secant predictor: along a smooth path this lands near the next equilibrium,
+                    # sparing the damped iterations a large-rotation step needs from the last state
+                    start = u + (trial - current) / (current - previous[0]) * (u - previous[1])
+                    if not np.isfinite(problem.energy(start)):
+                        start = u
+                try:
+                    res = minimize(problem, start, log=None, **newton_options)
+                except BaseException as exc:
+                    if not isinstance(exc, NewtonError):
+                        problem.load_factor = current     # an error of another kind: leave the last converged factor
+                        raise
+                    if abs(step) * 0.5 <= min_step:    # (<=: a step of 0, to a factor equal to the start, ends too)
+                        problem.load_factor = current
+                        raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed, and the step cannot be "
+                                          f"cut further (max_cuts = {max_cuts}: not below 2**-{max_cuts} of the interval "
+                                          f"to {target:.6g}; last converged load factor {current:.6g}): {exc}", last_converged())
+                    step *= 0.5
+                    if log:
+                        log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
+                    continue
+                previous = (current, u)
+                u, current, last = res.u, trial, res
+                if hasattr(problem, "accept"):
+                    problem.accept(u)
+                if abs(current - target) <= 1e-14 * max(1.0, abs(target)):
+                    break
+                # a converged step earns one doubling back, not the whole remaining interval at once: a
+                # stretch that needs many small steps would otherwise pay a failed solve for every one
+                remaining = target - current
+                step = remaining if abs(2.0 * step) >= abs(remaining) else 2.0 * step
+            if log:
+                log(f"  load factor {target:.6g}: {res.summary()}")
+            if callback:
+                callback(target, res)
+            out.append(res)
+        return out
+    finally:
+        if own:
+            for f in newton_options["factorizers"]:
+                f.free()
