@@ -55,6 +55,22 @@ def test_plate_with_loads_derivatives(square):
     _fd_check(model, u, rng)
 
 
+def test_loads_keep_the_shells_hessian_pattern(square):
+    """On the flat state the coupling entries are exact zeros; a sparse sum with the loads' matrices
+    dropped them, and every load step handed the factorisation a new pattern to analyse."""
+    rest = natural_curvature(square.points, square.triangles, 0.05, 0.0)
+    loads = [EdgeMoment("right", 0.7), FollowerPressure(0.4)]
+    model = ShellModel(square, Material(1.0, 0.0), rest, [Clamped("left")], loads)
+    model.load_factor = 0.3
+    u = model.initial_unknowns()
+    K = model.hessian(u)
+    assert K.nnz == model.assembler.nnz and np.array_equal(K.indices, model.assembler.indices)
+    bare = ShellModel(square, Material(1.0, 0.0), rest, [Clamped("left")]).hessian(u)
+    added = sum(model._load_assemblers[i][0].matrix(load.hessian_blocks(model.full(u))[1])
+                for i, load in enumerate(loads))
+    np.testing.assert_allclose(K.toarray(), (bare - 0.3 * added).toarray(), rtol=0, atol=1e-14 * abs(K).max())
+
+
 def test_sphere_derivatives_curved_state():
     rng = np.random.default_rng(2)
     mesh = sphere(radius=2.0, n_vertices=150)

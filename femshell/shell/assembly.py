@@ -54,6 +54,18 @@ class SparseAssembler:
         self.indices = c.astype(np.int32 if self.n < 2**31 else np.int64)
         self.nnz = len(uniq)
 
+    def slots_of(self, other: "SparseAssembler"):
+        """Positions in this pattern's CSR data of the entries of ``other``'s pattern (same unknowns), or
+        None when ``other`` has an entry this pattern lacks."""
+        if other.n != self.n:
+            return None
+        keys = np.repeat(np.arange(self.n), np.diff(self.indptr)) * self.n + self.indices
+        other_keys = np.repeat(np.arange(other.n), np.diff(other.indptr)) * other.n + other.indices
+        slots = np.searchsorted(keys, other_keys)
+        if np.any(slots >= len(keys)) or not np.array_equal(keys[np.minimum(slots, len(keys) - 1)], other_keys):
+            return None
+        return slots
+
     def vector(self, element_vectors: np.ndarray) -> np.ndarray:
         """Sum element vectors (m, k) into the free unknowns."""
         v = np.asarray(element_vectors).ravel()[self._vec_keep]

@@ -376,14 +376,23 @@ class ShellModel:
         q = self.full(u)
         interior = (self.edge_kind_el == el.INTERIOR).all(axis=1)  # these skip the boundary branches
         K = self.assembler.matrix(np.asarray(self._kernels.hessian_grouped(interior, *self._element_args(q))))
+        own_pattern = True
         for i, load in enumerate(self.loads):
             blocks = load.hessian_blocks(q)
             if blocks is None:
                 continue
             dofs, h = blocks
             if i not in self._load_assemblers:
-                self._load_assemblers[i] = SparseAssembler(dofs, self.free)
-            K = K - self.load_factor * self._load_assemblers[i].matrix(h)
+                asm = SparseAssembler(dofs, self.free)
+                self._load_assemblers[i] = (asm, self.assembler.slots_of(asm))
+            asm, slots = self._load_assemblers[i]
+            M = asm.matrix(h)
+            if slots is not None and own_pattern:
+                # in place, on the shell's own pattern: a sparse sum would drop the exact zeros of a flat
+                # state and hand the factorisation a new pattern (a new symbolic analysis)
+                K.data[slots] -= self.load_factor * M.data
+            else:
+                K, own_pattern = K - self.load_factor * M, False
         return K
 
     def accept(self, u):
