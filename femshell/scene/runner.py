@@ -439,6 +439,10 @@ class BaseRunner:
         """Back to the last accepted state's parameter after a step was abandoned midway (an error,
         Ctrl-C), so that the summary's measures are of that state (subclasses with a parameter)."""
 
+    def release(self):
+        """Free what the steps held (factorisations) once no step follows, before the results are
+        written (subclasses that hold some)."""
+
     def accepted(self, text, fraction):
         self.step += 1
         self.steps_this_run += 1
@@ -512,6 +516,7 @@ class BaseRunner:
                 # the scene stored in --out already holds any --set overrides of this run
                 self.message = f"interrupted after step {self.step}; continue with: femshell run --out {rdp} --resume"
                 code = 130
+            self.release()
             # the last accepted state, whatever happened. A Ctrl-C from here on lets the frame, checkpoint and
             # summary be written (they must agree) and skips only the pictures. The summary comes before the
             # pictures: a renderer that dies natively (VTK without a usable OpenGL) must not leave a finished
@@ -871,6 +876,10 @@ class StaticRunner(BaseRunner):
     def settle(self):
         self._set(self.mu)
 
+    def release(self):
+        for f in self.newton["factorizers"]:
+            f.free()
+
     def _set(self, mu):
         gr = self.scene["growth"]
         self.parts.model.load_factor = mu
@@ -1100,12 +1109,12 @@ class ContinuationRunner(BaseRunner):
         out = {"amplitude": amp}
         if self.flat and self.r2 is not None:
             from ..analysis import count_wrinkles
-            # counted as the disk-wrinkles validation case counts them: just outside the grown region, and a
-            # shifted or tilted dome (k = 1) is no wrinkle
+            # counted as the disk-wrinkles validation case counts them: w with its best-fit plane removed, just
+            # outside the grown region, and a shifted or tilted dome (k = 1) is no wrinkle
             r = min(1.15 * self.r2, 0.98 * float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max()))
             try:
-                out["wrinkles"] = count_wrinkles(self.mesh.points, w, r, triangles=self.mesh.triangles, min_mode=2,
-                                                rel_tol=0.05)
+                out["wrinkles"] = count_wrinkles(self.mesh.points, self.deflection(disp[:, 2]), r,
+                                                triangles=self.mesh.triangles, min_mode=2, rel_tol=0.05)
             except ValueError:
                 out["wrinkles"] = -1
         return out
