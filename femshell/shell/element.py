@@ -29,8 +29,9 @@ altitude onto it. Only the component of :math:`n_e` across the edge enters, whic
 is why one angle per edge suffices. For small deflections :math:`w` this is the
 Morley element (exact for quadratic :math:`w`), which converges on unstructured
 meshes, unlike hinge (dihedral-angle) springs. With outward normals a sphere of
-radius R has :math:`b \approx a/R` (positive; exact only in the limit of fine meshes, as the
-mid-edge normals of a drawn polyhedron are the mean of its face normals).
+radius R has :math:`b \approx a/R` (positive), on average: per element it scatters, as the mid-edge
+normals of a drawn polyhedron are the mean of its face normals, and the scatter shrinks only
+slowly under refinement (:mod:`femshell.validation.curvature`).
 
 **Energy** (design.md 1.2, St Venant–Kirchhoff in metric form):
 

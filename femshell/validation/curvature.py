@@ -10,7 +10,7 @@ unknowns that complete the Morley-type element):
     drawn mesh as the loop's rest state sees it (``model.initial_unknowns()``).
     Per element H scatters around 1/R on a sphere: the L2 error falls only slowly
     under refinement (13 % at 174 vertices, 7 % at 3 094: order ≈ 0.4) and the
-    largest error not at all (80–100 %), because the mean of two face normals is not
+    largest error not at all (60–100 %), because the mean of two face normals is not
     the surface normal at the edge midpoint to the order that b, a derivative of the
     normal, needs. Reported, no tolerance.
 ``relaxed angles``
