@@ -34,15 +34,17 @@ and −1/4 with no tolerance (the paper's exponents are for a spring network's f
 wrinkles; ours is a measurement); with fewer than two wrinkled states of distinct h (or ε) there is
 no exponent row, and the row counting the wrinkled states says so.
 
-Measured (full level, R2 = 3, resolution 18 = 3 318 vertices, 7-18 min per state; table and reading
-in docs/disk-crosscheck.md): the stable states are domes whose rim carries a non-axisymmetric part of
-5-12 % of their height. At ε = 0.5, n = 4, 6, 3 for h = 0.25, 0.35, 0.5 and no wrinkle at h = 1
-(fitted exponent 0.17 ± 1.2 against 1/2); at h = 0.25, n = 5, 4, 4 for ε = 0.3, 0.4, 0.5 (+0.47 ± 0.20
-against −1/4). The other start ends 0.08-1.7 % higher in energy, at a different n in six of the seven
-wrinkled states; on the coarser mesh (resolution 12) n is one higher at h = 0.25 and 0.5; and a
-reinstall of the dependencies changed the resolution-12 n at h = 0.25 from 6 to 5 (runs repeat bit
-for bit within one installation). n is decided by the path to within ±1-2, not by h and ε: this is
-not a wrinkle wavelength one can fit a scaling law to.
+Measured (full level, R2 = 3, resolution 18 = 3 318 vertices, 5-40 min per state; re-run on
+2026-11-27; table and reading in docs/disk-crosscheck.md): the stable states are domes whose rim
+carries a non-axisymmetric part of 8-11 % of their height. At ε = 0.5, n = 3, 6, 4 for h = 0.25, 0.35,
+0.5 and no wrinkle at h = 1 (fitted exponent −0.12 ± 1.2 against 1/2); at h = 0.25, n = 3, 4, 3 for
+ε = 0.3, 0.4, 0.5 (−0.07 ± 0.77 against −1/4). The other start ends 0.03-1.9 % higher in energy, at a
+different n in six of the seven wrinkled states; on the coarser mesh (resolution 12) n is two higher
+at h = 0.25 and one lower at 0.5. The run of 2026-11-24, before the Newton changes of 2026-11-25/26,
+had n = 4, 6, 3 and 5, 4, 4 (exponents 0.17 ± 1.2 and +0.47 ± 0.20), and a reinstall of the
+dependencies had changed the resolution-12 n at h = 0.25 from 6 to 5 (runs repeat bit for bit within
+one installation). n is decided by the path to within ±1-2, not by h and ε: this is not a wrinkle
+wavelength one can fit a scaling law to.
 """
 
 from __future__ import annotations
