@@ -915,7 +915,7 @@ class StaticRunner(BaseRunner):
         return self.k >= self.n_steps
 
     def advance(self):
-        from ..solvers.newton import NewtonError, minimize
+        from ..solvers.newton import NewtonError, minimize, secant_start
 
         model = self.parts.model
         target = (self.k + 1) / self.n_steps
@@ -926,11 +926,7 @@ class StaticRunner(BaseRunner):
         while True:
             trial = self.mu + step
             self._set(trial)
-            start = self.u
-            if self.prev is not None and self.prev[0] != self.mu:
-                start = self.u + (trial - self.mu) / (self.mu - self.prev[0]) * (self.u - self.prev[1])
-                if not np.isfinite(model.energy(start)):
-                    start = self.u
+            start = secant_start(model, self.u, self.mu, trial, self.prev)
             try:
                 res = minimize(model, start, log=None, **self.newton)
                 iters += res.iterations

@@ -468,6 +468,18 @@ def _escape_saddle(problem, u, e, K, log):
     raise NewtonError(f"at a saddle (eigenvalue {lam[0]:.3e}) but no step along its mode lowers the energy")
 
 
+def secant_start(problem, u, current, trial, previous):
+    """The start of the solve at parameter ``trial``: u extrapolated along the secant from the converged
+    state before, ``previous = (parameter, state)``, to the last one, u at ``current``; u itself without a
+    previous state at another parameter, or where the energy is not finite at the extrapolation. Along a
+    smooth path this lands near the next equilibrium, sparing the damped iterations a large-rotation
+    step needs from the last state."""
+    if previous is None or previous[0] == current:
+        return u
+    start = u + (trial - current) / (current - previous[0]) * (u - previous[1])
+    return start if np.isfinite(problem.energy(start)) else u
+
+
 def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, log=print, **newton_options):
     """Equilibria along increasing load factors, each warm-started from the previous one.
 
@@ -519,13 +531,7 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
                     raise NewtonError(f"load step from {current:.17g} towards {target:.6g} is below the float resolution "
                                       f"there (step {step:.3g}): it cannot be cut further", last_converged())
                 problem.load_factor = trial
-                start = u
-                if previous is not None and previous[0] != current:
-                    # secant predictor: along a smooth path this lands near the next equilibrium,
-                    # sparing the damped iterations a large-rotation step needs from the last state
-                    start = u + (trial - current) / (current - previous[0]) * (u - previous[1])
-                    if not np.isfinite(problem.energy(start)):
-                        start = u
+                start = secant_start(problem, u, current, trial, previous)
                 try:
                     res = minimize(problem, start, log=None, **newton_options)
                 except BaseException as exc:

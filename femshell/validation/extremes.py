@@ -62,7 +62,7 @@ def grow_in_steps(model, rest_at, s_target, n_steps=10, max_cuts=6, callback=Non
     cuts leaves the model at the last converged stretch and carries it in ``stats`` of the
     error's ``.stats`` attribute.
     """
-    from ..solvers.newton import NewtonError, minimize
+    from ..solvers.newton import NewtonError, minimize, secant_start
 
     s, u = 1.0, (model.initial_unknowns() if u0 is None else np.array(u0, float))
     if "residual_scale" not in newton:
@@ -79,11 +79,7 @@ def grow_in_steps(model, rest_at, s_target, n_steps=10, max_cuts=6, callback=Non
     while s < s_target - 1e-14:
         trial = min(s + step, s_target)
         model.set_rest_state(rest_at(trial))
-        start = u
-        if previous is not None:
-            start = u + (trial - s) / (s - previous[0]) * (u - previous[1])
-            if not np.isfinite(model.energy(start)):
-                start = u
+        start = secant_start(model, u, s, trial, previous)
         try:
             res = minimize(model, start, log=None, **newton)
         except NewtonError as exc:
