@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import os
 import signal
 import sys
@@ -242,7 +243,9 @@ def _cmd_scenes(args):
     if args.name:
         p = embedded_scene_path(args.name)
         if p is None:
-            raise ValueError(f"no embedded scene '{args.name}' (embedded: {', '.join(scenes)})")
+            s = difflib.get_close_matches(args.name, list(scenes), n=1, cutoff=0.5)
+            raise ValueError(f"no embedded scene '{args.name}'{f'; did you mean {s[0]!r}?' if s else ''} "
+                             f"(embedded: {', '.join(scenes)})")
         sys.stdout.write(p.read_text(encoding="utf-8"))
         return 0
     for name, desc in scenes.items():

@@ -521,6 +521,7 @@ class TimeStepping:
         a Cholesky factor, so PARDISO: with SuperLU every solve is plain Newton.
     ramp_ds : largest stretch increment of the initial equilibrium (growth ramped from
         s = 1 to s(c0), with a secant predictor; cut on Newton failure, grown by 1.5 after success).
+        Scenes default to 0.05 (``solver.ramp_ds``), half of this default, for the paper-size spheres.
     predictor : start Newton from the secant prediction u + (h/h_prev)(u − u_prev) when
         it has lower energy than u (a grown rest state leaves the old shape compressed,
         near buckling, where Newton from the old shape needs many iterations).

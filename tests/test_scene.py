@@ -89,6 +89,8 @@ def test_scenes_command_lists_and_prints(capsys):
     assert main(["scenes", "disk-wrinkles"]) == 0
     assert "[mesh]" in capsys.readouterr().out
     assert main(["scenes", "nope"]) == 2
+    assert main(["scenes", "sphere-decy"]) == 2
+    assert "did you mean 'sphere-decay'?" in capsys.readouterr().err
 
 
 def test_unknown_scene_name_suggests():
@@ -155,6 +157,20 @@ def test_inconsistent_combinations(tmp_path, errors_of):
     # a continuation that would start or stop outside its parameter's range (was met only mid-run)
     errs = errors_of(tmp_path, PLATE.replace("stop = 1e-3", "start = -2.0\nstop = 1e-3"))
     assert errs == ["scene.toml: [solver] start = -2 is out of range for growth.strain: > -1 (a stretch 1 + g > 0)"]
+
+
+def test_contradictory_continuation_and_initial_keys_are_refused(tmp_path, errors_of):
+    # accepted before: a stop at the scene's own start (a traceback after the build), stop_at / switch_branch
+    # without detection (a long run that never stopped at the branch point), a zero elongation direction
+    # (silently y). Keys made inert by a switch a user flips with --set (switch_branch = false, initial.kind =
+    # "none") stay accepted: the embedded scenes carry them
+    errs = errors_of(tmp_path, PLATE.replace("stop = 1e-3", "stop = 0.0"))
+    assert errs == ["scene.toml: [solver] stop = 0 equals the start (growth.strain) = 0: nothing to follow"]
+    errs = errors_of(tmp_path, PLATE + 'detect = false\nstop_at = ["branch"]\nswitch_branch = true\n')
+    assert [e.split("] ")[1].split(" ")[0] for e in errs] == ["stop_at", "switch_branch"]
+    assert all("needs detect = true" in e for e in errs)
+    errs = errors_of(tmp_path, SPHERE + "[initial]\ndirection = [0.0, 0.0, 0.0]\n")
+    assert errs == ["scene.toml: [initial] direction = [0, 0, 0] must be a non-zero vector"]
 
 
 def test_key_of_another_kind_is_named(tmp_path, errors_of):
@@ -294,6 +310,7 @@ def test_dry_run_cli(capsys, tmp_path):
                  "mesh.inner_edge_length=1.5", "--out", str(tmp_path / "d")]) == 0
     out = capsys.readouterr().out
     assert "pseudo-arclength continuation in growth.strain" in out and "not built  chemistry" in out
+    assert "curves outer, inner (interior)" in out      # the refinement circle is no boundary
     assert not (tmp_path / "d").exists()
 
 

@@ -107,6 +107,9 @@ def test_embedded_scene_runs_tiny(scene, tmp_path):
     elif kind == "continuation":
         assert (out / "branch.csv").exists()
         assert summary["final"]["rows"] >= 2
+        if scene == "disk-wrinkles":
+            # the disk's first mode is a dome, n = 0 (counted from k = 1 up, a trace of tilt made it "1 wave")
+            assert [sp["mode_n"] for sp in summary["final"]["special_points"]] == [0]
     else:
         assert summary["final"]["load_factor"] == 1.0
     if scene in WITH_PICTURES:
@@ -508,6 +511,17 @@ def test_continuation_short_of_its_stop_says_so(tmp_path):
     assert s["status"] == "max_steps_branch", s["status"]
     assert "primary branch: stopped at solver.max_steps = 2 before its stop value 0.001" in s["message"]
     assert s["final"]["final_value"] < 1e-3
+
+
+def test_continuation_reaches_a_stop_below_its_start(tmp_path):
+    # the branch set off upward whatever the stop, ran away from a stop below the start and ended at max_steps
+    over = ["mesh.edge_length=0.4", "solver.stop=-1e-4", "solver.max_steps=6", "solver.n_eigs=0",
+            "solver.switch_branch=false", "solver.stop_at=[]"]
+    out = tmp_path / "run"
+    assert run("clamped-plate-buckling", out, overrides=over) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "done", (s["status"], s["message"])
+    assert s["final"]["final_value"] == pytest.approx(-1e-4, rel=1e-12)
 
 
 def test_continuation_leaving_the_parameter_range_is_named(tmp_path, capsys):

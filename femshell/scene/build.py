@@ -451,12 +451,14 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
         unk = count_unknowns(mesh, bcs)
     except ValueError as exc:
         raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
-    curves = list(t.boundary_edge_groups)
+    # a disk's "inner" circle is a named curve of interior edges (the mesh is refined inside it), not a boundary
+    curves = [k + (" (interior)" if len(e) and np.all(t.edge_faces[e, 1] >= 0) else "")
+              for k, e in t.boundary_edge_groups.items()]
     lines = [f"scene '{scene.name}' ({_source_text(scene)}): {d['description'] or '(no description)'}"]
     m = d["mesh"]
     args = ", ".join(f"{k}={v}" for k, v in m.items() if k != "kind" and v is not None)
     lines.append(f"  mesh       {m['kind']}({args}): {mesh.n_vertices} vertices, {mesh.n_triangles} triangles, "
-                 f"{t.n_edges} edges; " + (f"boundary curves {', '.join(curves)}" if curves else "closed (no boundary)"))
+                 f"{t.n_edges} edges; " + (f"curves {', '.join(curves)}" if curves else "closed (no boundary)"))
     mat, sh = d["material"], d["shell"]
     lines.append(f"  shell      Kirchhoff-Love mid-edge element, E={mat['E']:g} nu={mat['nu']:g} "
                  f"membrane={mat.get('law', 'svk')} h={sh['thickness']:g} "

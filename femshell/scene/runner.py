@@ -64,7 +64,7 @@ import numpy as np
 from .. import io as fio
 from .._interrupts import committing, interruptible, raise_if_interrupted, step_scope
 from .build import load_scene, make_mesh, plan, shell_parts, stretch_field, time_loop
-from .schema import Scene, SceneError, dump_toml, parse_scene, validate
+from .schema import Scene, SceneError, continuation_start, dump_toml, parse_scene, validate
 
 __all__ = ["run_scene", "RunDirError", "RUN_FILES"]
 
@@ -1033,16 +1033,12 @@ class ContinuationRunner(BaseRunner):
         model = parts.model
         self.param = so["parameter"]
         h0 = sc["shell"]["thickness"]
+        self.start = continuation_start(so, gr)
         if self.param == "loads.factor":
-            self.start = 0.0 if so["start"] is None else so["start"]
             if gr["law"] not in ("none", None):
                 parts.apply(stretch_field(gr, self.mesh))
             model.load_factor = self.start
-        elif self.param == "growth.strain":
-            self.start = gr["strain"] if so["start"] is None else so["start"]
-            model.load_factor = 1.0
         else:
-            self.start = gr["inner_radius"] if so["start"] is None else so["start"]
             model.load_factor = 1.0
         stop = so["stop"]
         scale = so["parameter_scale"] or (abs(stop - self.start) if stop is not None else 1.0) or 1.0
@@ -1093,6 +1089,10 @@ class ContinuationRunner(BaseRunner):
         coef, *_ = np.linalg.lstsq(A, z, rcond=None)
         return z - A @ coef
 
+    def _count_radius(self):
+        """The circle of the wrinkle count: r = 1.15 R2, just outside the grown region (inside the mesh)."""
+        return min(1.15 * self.r2, 0.98 * float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max()))
+
     def record(self, u):
         x = self.parts.model.positions(u)
         disp = x - self.mesh.points
@@ -1107,9 +1107,8 @@ class ContinuationRunner(BaseRunner):
             from ..analysis import count_wrinkles
             # counted as the disk-wrinkles validation case counts them: w with its best-fit plane removed, just
             # outside the grown region, and a shifted or tilted dome (k = 1) is no wrinkle
-            r = min(1.15 * self.r2, 0.98 * float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max()))
             try:
-                out["wrinkles"] = count_wrinkles(self.mesh.points, self.deflection(disp[:, 2]), r,
+                out["wrinkles"] = count_wrinkles(self.mesh.points, self.deflection(disp[:, 2]), self._count_radius(),
                                                 triangles=self.mesh.triangles, min_mode=2, rel_tol=0.05)
             except ValueError:
                 out["wrinkles"] = -1
@@ -1284,8 +1283,10 @@ class ContinuationRunner(BaseRunner):
                 branch.status, branch.message = "lam_stop", f"reached parameter {stop:.6g}"
             elif primary and not resumed:
                 self._seg_start = self.start
+                # toward the stop value, which may lie below the start
+                direction = -1 if stop is not None and stop < self.start else 1
                 branch = continuation(self.problem, self.u, self.start, ds=so["ds"], lam_stop=stop, label=label,
-                                      callback=callback, **opts)
+                                      direction=direction, callback=callback, **opts)
             elif not resumed:
                 sp = self._switch_point()
                 # the switched branch's first step is measured from its branch point, not from where the
@@ -1352,12 +1353,14 @@ class ContinuationRunner(BaseRunner):
         if not sp.located:
             info["bracket"] = list(sp.bracket)
         if self.flat and self.r2 is not None and sp.modes.shape[1]:
-            from ..analysis import count_wrinkles
+            from ..analysis import azimuthal_spectrum
+            # the dominant azimuthal wavenumber of the critical mode, 0 for a dome (counting wrinkles from k = 1 up
+            # called a dome with a trace of tilt "1 wave")
             try:
-                info["mode_wrinkles"] = count_wrinkles(self.mesh.points,
-                                                       self.deflection(model.mode_displacements(sp.modes[:, 0])[:, 2]),
-                                                       self.r2, triangles=self.mesh.triangles, min_mode=1,
-                                                       rel_tol=1e-3)
+                amp = azimuthal_spectrum(self.mesh.points,
+                                         self.deflection(model.mode_displacements(sp.modes[:, 0])[:, 2]),
+                                         self._count_radius(), triangles=self.mesh.triangles)
+                info["mode_n"] = int(np.argmax(amp))
             except ValueError:
                 pass
         self.specials.append(info)
@@ -1366,7 +1369,7 @@ class ContinuationRunner(BaseRunner):
                        f"located ({sp.info.get('reason', '')})")
             return
         self.p.say(f"  found {sp.label} at {self.param} = {sp.parameter:.8g} (multiplicity {sp.multiplicity}"
-                   + (f", mode with {info['mode_wrinkles']} waves" if "mode_wrinkles" in info else "") + ")")
+                   + (f", mode n = {info['mode_n']}" if "mode_n" in info else "") + ")")
 
     def rows(self):
         return self.segments + self.cur_rows
@@ -1412,8 +1415,7 @@ class ContinuationRunner(BaseRunner):
                  + (f", {fin['wrinkles']} wrinkles" if "wrinkles" in fin else "")]
         for s in self.specials:
             lines.append(f"{s['branch']}: {s['label']} at {self.param} = {s['parameter']:.8g}, multiplicity "
-                         f"{s['multiplicity']}" + (f", mode with {s['mode_wrinkles']} waves" if "mode_wrinkles" in s
-                                                  else ""))
+                         f"{s['multiplicity']}" + (f", mode n = {s['mode_n']}" if "mode_n" in s else ""))
         return lines
 
     def pictures(self):

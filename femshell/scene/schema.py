@@ -9,7 +9,8 @@ in 1/β, E = 1 by default: design.md section 3)::
     [mesh]        kind = "sphere" | "hemisphere" | "disk" | "plate" | "strip" | "annulus"
                   | "cylinder" | "file", the generator's arguments (radius, n_vertices or
                   edge_length, ...; see MESH_KEYS) or file = "path" (relative to the scene)
-    [material]    E (> 0, default 1), nu (0 <= nu <= 0.5, default 0.5)
+    [material]    E (> 0, default 1), nu (0 <= nu <= 0.5, default 0.5),
+                  law = "svk" (design.md's St Venant–Kirchhoff, default) | "neo-hookean"
     [shell]       thickness h (> 0, required), thickness_mode = "volume" | "uniform",
                   natural_curvature = "mesh" (the drawn mesh is stress free) or k0 (1/length)
     [growth]      law = "none" | "uniform" | "inner_region" | "contractility"
@@ -25,7 +26,8 @@ in 1/β, E = 1 by default: design.md section 3)::
     [initial]     kind = "spot" | "spots" | "none"; amplitude, width, elongation, pole, direction,
                   distance; spots: layout = "icosahedron" | "random", count, seed
     [solver]      kind = "static" | "continuation" | "time" and its controls (SOLVER_KEYS)
-    [output]      every, checkpoint_every, pictures, movie, fields, picture_field, cmap
+    [output]      every, checkpoint_every, pictures, movie, fields, picture_field, cmap,
+                  progress_interval
 
 Validation (:func:`validate`) checks everything before anything is computed and raises
 one :class:`SceneError` listing every problem, one line each, naming the key path::
@@ -248,7 +250,7 @@ SOLVER_KEYS = {
         "parameter": Spec(S, None, "the continuation parameter", required=True,
                           choices=("loads.factor", "growth.strain", "growth.inner_radius")),
         "start": Spec(F, None, "start value (default: the scene's value, 0 for loads.factor)"),
-        "stop": Spec(F, None, "stop exactly at this value"),
+        "stop": Spec(F, None, "stop exactly at this value (above or below the start: the branch sets off toward it)"),
         "ds": Spec(F, 0.05, "first arclength step (weighted, dimensionless)", **POS),
         "ds_min": Spec(F, None, "smallest step (default ds/1000)", **POS),
         "ds_max": Spec(F, None, "largest step (default 2 ds)", **POS),
@@ -561,6 +563,17 @@ def parse_scene(text: str, label: str) -> dict:
         raise SceneError(f"{label}: not valid TOML: {exc}") from None
 
 
+def continuation_start(solver: dict, growth: dict):
+    """The parameter's value where a continuation starts: ``solver.start``, else the scene's own value
+    (0 for loads.factor); None when that value is missing (reported elsewhere)."""
+    if solver.get("start") is not None:
+        return solver["start"]
+    p = solver["parameter"]
+    if p == "loads.factor":
+        return 0.0
+    return growth.get("strain" if p == "growth.strain" else "inner_radius")
+
+
 def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None, check_files=True) -> Scene:
     """Check a raw scene dict completely; returns a :class:`Scene` with all defaults filled in.
 
@@ -717,8 +730,9 @@ def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None, ch
                 if k in given_ini:
                     ck.err(f"[initial] {k} is used only with layout = \"random\" (an icosahedron has 12 vertices)")
                 ini.pop(k, None)
-        if data["initial"].get("pole") is not None and not any(data["initial"]["pole"]):
-            ck.err("[initial] pole = [0, 0, 0] must be a non-zero vector")
+        for k in ("pole", "direction"):
+            if ini.get(k) is not None and not any(ini[k]):
+                ck.err(f"[initial] {k} = [0, 0, 0] must be a non-zero vector")
         beta = data["chemistry"].get("beta")
         if data["initial"].get("kind") in ("spot", "spots") and data["initial"].get("amplitude") is None and beta == 0:
             ck.err("[initial] amplitude is required when [chemistry] beta = 0 (its default c_max = w Hs / beta "
@@ -824,9 +838,6 @@ def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None, ch
                 ck.err("[solver] parameter = \"growth.inner_radius\" needs [growth] transition > 0: with a sharp "
                        "region boundary the rest state jumps as R2 passes an element, which is not a smooth "
                        "parameter")
-        start, stop = solver.get("start"), solver.get("stop")
-        if start is not None and stop is not None and start == stop:
-            ck.err(f"[solver] start = stop = {_fmt(start)}: nothing to follow")
         for key in ("start", "stop", "switch_stop"):
             v = solver.get(key)
             if v is None:
@@ -835,8 +846,12 @@ def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None, ch
                 ck.err(f"[solver] {key} = {_fmt(v)} is out of range for growth.strain: > -1 (a stretch 1 + g > 0)")
             if p == "growth.inner_radius" and not v > 0:
                 ck.err(f"[solver] {key} = {_fmt(v)} is out of range for growth.inner_radius: 0 < R2")
-        if stop is None and solver.get("max_steps") is None:
-            ck.err("[solver] give stop (or max_steps) for the continuation")
+        if solver.get("detect") is False:
+            # without detection there is no special point to stop at or to switch from
+            for key, bad in (("stop_at", bool(solver.get("stop_at"))), ("switch_branch", solver.get("switch_branch"))):
+                if bad:
+                    ck.err(f"[solver] {key} = {_show(solver[key])} needs detect = true (no fold or branch point is "
+                           "located without it)")
         for k in solver.get("stop_at") or []:
             if k not in ("fold", "branch"):
                 ck.err(f"[solver] stop_at = {_show(solver['stop_at'])}: entries must be \"fold\" or \"branch\"")
@@ -851,6 +866,11 @@ def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None, ch
                    "of a disk)")
         else:
             data["growth"]["inner_radius"] = r2
+    if kind == "continuation" and solver.get("parameter") and solver.get("stop") is not None:
+        start, stop = continuation_start(solver, data["growth"]), solver["stop"]
+        if start is not None and start == stop:
+            given = "start" if solver.get("start") is not None else f"the start ({solver['parameter']})"
+            ck.err(f"[solver] stop = {_fmt(stop)} equals {given} = {_fmt(start)}: nothing to follow")
     if kind == "time":
         st = solver
         if all(st.get(k) is not None for k in ("dt_min", "dt_max")) and st["dt_max"] < st["dt_min"]:
