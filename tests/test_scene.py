@@ -50,6 +50,24 @@ stop = 1e-3
 """
 
 
+DISK_GROWTH = """
+description = "a disk whose inner circle grows"
+[mesh]
+kind = "disk"
+radius = 10.0
+edge_length = 2.5
+[shell]
+thickness = 2.0
+[growth]
+law = "inner_region"
+inner_radius = 3.0
+[solver]
+kind = "continuation"
+parameter = "growth.strain"
+stop = 0.5
+"""
+
+
 def write(tmp_path, text, name="scene.toml"):
     p = tmp_path / name
     p.write_text(textwrap.dedent(text))
@@ -169,6 +187,12 @@ def test_contradictory_continuation_and_initial_keys_are_refused(tmp_path, error
     errs = errors_of(tmp_path, PLATE + 'detect = false\nstop_at = ["branch"]\nswitch_branch = true\n')
     assert [e.split("] ")[1].split(" ")[0] for e in errs] == ["stop_at", "switch_branch"]
     assert all("needs detect = true" in e for e in errs)
+    errs = errors_of(tmp_path, DISK_GROWTH, ["growth.inner_radius=12.0"])
+    assert errs == ['scene.toml: [growth] inner_radius = 12 is out of range: 0 < R2 < the disk\'s radius 10 (r < R2 '
+                    'would cover the whole disk; law = "uniform" grows it all)']
+    errs = errors_of(tmp_path, DISK_GROWTH, ["solver.parameter=growth.inner_radius", "growth.transition=0.2",
+                                             "solver.stop=10.0"])
+    assert len(errs) == 1 and errs[0].startswith("scene.toml: [solver] stop = 10 is out of range: 0 < R2 <")
     errs = errors_of(tmp_path, SPHERE + "[initial]\ndirection = [0.0, 0.0, 0.0]\n")
     assert errs == ["scene.toml: [initial] direction = [0, 0, 0] must be a non-zero vector"]
 

@@ -866,6 +866,15 @@ def validate(raw: dict, *, name: str, label: str, source=None, base_dir=None, ch
                    "of a disk)")
         else:
             data["growth"]["inner_radius"] = r2
+    if law == "inner_region" and mesh.get("kind") == "disk" and mesh.get("radius"):
+        # a grown region r < R2 covering the whole disk is uniform growth: a slip of R2 for a diameter, say
+        values = [("[growth] inner_radius", data["growth"].get("inner_radius"))]
+        if kind == "continuation" and solver.get("parameter") == "growth.inner_radius":
+            values += [(f"[solver] {k}", solver.get(k)) for k in ("start", "stop", "switch_stop")]
+        for what, v in values:
+            if v is not None and v >= mesh["radius"]:
+                ck.err(f"{what} = {_fmt(v)} is out of range: 0 < R2 < the disk's radius {_fmt(mesh['radius'])} "
+                       "(r < R2 would cover the whole disk; law = \"uniform\" grows it all)")
     if kind == "continuation" and solver.get("parameter") and solver.get("stop") is not None:
         start, stop = continuation_start(solver, data["growth"]), solver["stop"]
         if start is not None and start == stop:
