@@ -249,3 +249,30 @@ def test_clamped_curved_edge_keeps_the_natural_shape_nearly_unbent():
     flat_into_sphere = relaxed_bending(0.0, [held])
     assert relaxed_bending(1.0, [held]) < 1e-4 * flat_into_sphere                 # free rim
     assert relaxed_bending(1.0, [held, Clamped("equator")]) < 3e-3 * flat_into_sphere
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_sparse_assembly_against_a_dense_sum(seed):
+    # the cached scatter (pattern, positions, entries touching fixed unknowns dropped) against a plain dense sum;
+    # repeated unknowns in an element (a boundary element's stand-in vertices) included
+    from femshell.shell.assembly import SparseAssembler
+
+    rng = np.random.default_rng(seed)
+    n_total, m, k = 40, 30, 7
+    dofs = rng.integers(0, n_total, size=(m, k))
+    dofs[:, 1] = dofs[:, 0]                       # a repeated unknown inside each element
+    free = rng.random(n_total) < 0.7
+    free[dofs[0]] = True
+    asm = SparseAssembler(dofs, free)
+    E = rng.standard_normal((m, k, k))
+    v = rng.standard_normal((m, k))
+    dense, vec = np.zeros((n_total, n_total)), np.zeros(n_total)
+    np.add.at(dense, (dofs[:, :, None], dofs[:, None, :]), E)
+    np.add.at(vec, dofs, v)
+    K = asm.matrix(E)
+    assert K.has_sorted_indices            # free unknowns in no element leave empty rows here
+    assert np.allclose(K.toarray(), dense[np.ix_(free, free)], rtol=1e-14, atol=1e-14)
+    assert np.allclose(asm.vector(v), vec[free], rtol=1e-14, atol=1e-14)
+    touched = np.zeros((n_total, n_total), bool)
+    touched[dofs[:, :, None], dofs[:, None, :]] = True
+    assert asm.nnz == touched[np.ix_(free, free)].sum()       # the pattern: exactly the pairs that share an element

@@ -43,16 +43,7 @@ class SparseAssembler:
         local = self.free_index[dofs]                       # (m, k), -1 where fixed
         self._vec_keep = local.ravel() >= 0
         self._vec_target = local.ravel()[self._vec_keep]
-        rows = np.repeat(local, k, axis=1).ravel()          # (m*k*k,)
-        cols = np.tile(local, (1, k)).ravel()
-        keep = (rows >= 0) & (cols >= 0)
-        self._mat_keep = np.flatnonzero(keep)
-        key = rows[keep] * self.n + cols[keep]
-        uniq, self._mat_target = np.unique(key, return_inverse=True)
-        r, c = np.divmod(uniq, self.n)
-        self.indptr = np.searchsorted(r, np.arange(self.n + 1)).astype(np.int64)
-        self.indices = c.astype(np.int32 if self.n < 2**31 else np.int64)
-        self.nnz = len(uniq)
+        self.indptr, self.indices, self._mat_target, self.nnz = _matrix_pattern(local, self.n)
 
     def slots_of(self, other: "SparseAssembler"):
         """Positions in this pattern's CSR data of the entries of ``other``'s pattern (same unknowns), or
@@ -73,6 +64,45 @@ class SparseAssembler:
 
     def matrix(self, element_matrices: np.ndarray) -> sp.csr_matrix:
         """Sum element matrices (m, k, k) into a CSR matrix over the free unknowns."""
-        v = np.asarray(element_matrices).ravel()[self._mat_keep]
-        data = np.bincount(self._mat_target, weights=v, minlength=self.nnz)
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+        # entries touching a fixed unknown go to one extra bin, cut off after the sum
+        data = np.bincount(self._mat_target, weights=np.asarray(element_matrices).ravel(), minlength=self.nnz + 1)
+        return sp.csr_matrix((data[: self.nnz], self.indices, self.indptr), shape=(self.n, self.n))
+
+
+def _matrix_pattern(local: np.ndarray, n: int):
+    """CSR pattern (indptr, indices) of the sum of the element matrices over ``n`` free unknowns, the
+    position in it of every element matrix entry (m k k,: ``nnz`` for an entry touching a fixed
+    unknown, marked -1 in ``local``) and ``nnz``.
+
+    The element rows (e, a) are grouped by their unknown (a sort of m k integers), their columns
+    sorted within each row by scipy's CSR index sort, and repeated columns merged: the same pattern
+    and positions as ``np.unique`` of the m k² keys row · n + col in a quarter of the time (the shell
+    on a 25 000-vertex sphere, 22 M entries: 1.3–1.8 s against 5.3–6.9 s, measured; the sort and the
+    allocations of its m k² arrays were the cost), and one cached m k² array instead of two.
+    """
+    m, k = local.shape
+    block_row = local.ravel()
+    blocks = np.flatnonzero(block_row >= 0)
+    order = blocks[np.argsort(block_row[blocks], kind="stable")]
+    cols = local[order // k]                                        # (rows, k), grouped by row
+    keep = cols >= 0
+    counts = np.bincount(block_row[order], weights=keep.sum(axis=1), minlength=n).astype(np.int64)
+    start = np.zeros(n + 1, np.int64)
+    np.cumsum(counts, out=start[1:])
+    entry = (order[:, None] * k + np.arange(k))[keep]               # e k² + a k + b, exact in float64
+    grouped = sp.csr_matrix((entry.astype(np.float64), cols[keep].astype(np.int32 if n < 2**31 else np.int64),
+                             start), shape=(n, n))
+    grouped.has_sorted_indices = False
+    grouped.sort_indices()
+    c = grouped.indices
+    first = np.empty(len(c), bool)                                  # first of its (row, col) in the row
+    if len(c):
+        first[0] = True
+        np.not_equal(c[1:], c[:-1], out=first[1:])
+        first[start[:-1][counts > 0]] = True
+    ordinal = np.cumsum(first)
+    nnz = int(ordinal[-1]) if len(c) else 0
+    target = np.full(m * k * k, nnz, np.int64)
+    target[grouped.data.astype(np.int64)] = ordinal - 1
+    indptr = np.concatenate([[0], ordinal])[start]
+    return indptr, c[first], target, nnz
