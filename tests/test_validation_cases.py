@@ -56,3 +56,25 @@ def test_a_case_that_stops_with_an_error_fails_and_the_next_cases_run(tmp_path, 
     assert "broken: FAILED: the case stopped with RuntimeError: Newton diverged" in err
     assert "the earlier" in err and json.loads((tmp_path / "broken.json").read_text()) == {"earlier": True}
     assert json.loads((tmp_path / "patch-tests.json").read_text())["case"] == "patch-tests"   # ran after it
+
+
+def test_disk_loss_of_stability_where_the_branch_turns_is_a_fold():
+    # a loss of stability where dλ/ds also changes sign is a fold (limit point): the disk case snaps there
+    # instead of trying a branch switch (its corrector diverged at the h = 0.25 dome's fold)
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    d = dw.Disk(2.0, 3.0, 3)
+    u0 = d.model.initial_unknowns()
+    kinds = []
+    for sign in (+1.0, -1.0):
+        rows = [{"special": "", "n_negative": 0, "dlam_ds": 0.1, "parameter": 0.1},
+                {"special": "", "n_negative": 1, "dlam_ds": sign * 0.1, "parameter": 0.10001}]
+        branch = SimpleNamespace(status="callback", rows=rows, states=[(u0, 0.1), (u0 + 0.0, 0.10001)])
+        sp = dw.loss_of_stability(d, branch)
+        assert sp.bracket == (0.1, 0.10001) and np.isfinite(sp.eigenvalues).all()
+        kinds.append(sp.kind)
+    assert kinds == ["branch", "fold"]

@@ -11,7 +11,8 @@ turns at a further branch point) and draws
 
 * left: the largest deflection |w| (best-fit plane removed) against ε, solid where the state is a
   minimum (no negative eigenvalue), dashed where it is not, branch points as circles labelled by
-  the azimuthal wavenumber n of their critical mode and the number of eigenvalues that cross;
+  the azimuthal wavenumber n of their critical mode and the number of eigenvalues that cross, a fold
+  where the last branch turned back and the shell snapped (h = 0.25) as a square;
 * right: the critical mode of each branch point (its out-of-plane part, seen from above, r ≤ 2 R2)
   and the state reached at ε = 0.5.
 
@@ -75,6 +76,10 @@ def draw(result, flat, path, title):
                 / d.h, "ko", mfc="w")
         ax.annotate(f"BP{k + 1}: n={n}, {sp.multiplicity} mode(s)", (sp.parameter, 0.0), textcoords="offset points",
                     xytext=(4, 8 + 12 * k), fontsize=8)
+    for k, sp in enumerate(result["folds"]):      # where the last branch turned back and the shell snapped
+        ax.plot(sp.parameter, branch_points(result["branches"][-1])[1][-1] / d.h, "ks", mfc="w")
+        ax.annotate(f"LP{k + 1}: n={d.mode_wavenumber(sp.modes)}, snap", (sp.parameter, 0.0),
+                    textcoords="offset points", xytext=(4, 8 + 12 * (len(sps) + k)), fontsize=8)
     ax.plot(EPS_END, np.abs(result["w"]).max() / d.h, "k*", ms=10,
             label=f"state at ε = {EPS_END} ({result['count']} wrinkles{', relaxed' if result['relaxed'] else ''})")
     ax.set_xlabel("growth ε (linear stretch 1 + ε inside r < R2)")

@@ -40,7 +40,11 @@ components (:class:`~femshell.shell.ShellModel` does this for a shell without su
    stability on the way (a point with a negative eigenvalue after stable ones), that point is
    bisected the same way and the continuation switches again, onto the branch born there (at most
    ``MAX_SWITCHES`` times). So a secondary bifurcation to an azimuthal mode on the dome branch is
-   seen whatever its n.
+   seen whatever its n. A loss of stability where dλ/ds changes sign too is a fold (limit point):
+   the branch turns back there and no branch crosses it, so there is nothing to switch to (the
+   mesh's imperfect symmetry turns a symmetry-breaking pitchfork of the ideal disk into a fold of
+   the branch followed, the other half of the pitchfork lying apart); the shell then snaps, and
+   step 3 finds where from the fold pushed along its mode.
 3. **Final state**: if the last branch reaches ε = 0.5 unstable (or stops early), the state is
    relaxed to a stable equilibrium at ε = 0.5 by Newton with saddle escape
    (:func:`~femshell.solvers.newton.minimize`, ``stable=True``), after stepping ε to 0.5 if
@@ -54,9 +58,9 @@ components (:class:`~femshell.shell.ShellModel` does this for a shell without su
 
 Rows: per case the count at ε = 0.5 (the paper's count in the quantity text; no reference,
 no tolerance: the paper is a spring network and our continuum numbers need not agree), the
-first bifurcation ε and n, the number of branch switches, whether the final state had to be
-relaxed, and the number of negative eigenvalues at the final state (tolerance 0: every
-accepted state must be stable). Across cases: the counts at h = 2 must not decrease with R2,
+first bifurcation ε and n, the number of branch switches and of folds met, whether the final
+state had to be relaxed, and the number of negative eigenvalues at the final state (tolerance 0:
+every accepted state must be stable). Across cases: the counts at h = 2 must not decrease with R2,
 and the count at h = 0.25, R2 = 3 must not be smaller than at h = 2, R2 = 3 (full level);
 the smallest R2 of the grid where the count reaches 2, 3, 4 is reported beside the paper's
 1.95, 2.9, 3.9.
@@ -287,9 +291,10 @@ def loss_of_stability(d, branch):
     however many eigenvalues cross in one step, whereas locating each crossing eigenvalue needs all of
     them (the thick disk, h = 2 at R2 = 1, loses stability in ~30 modes at once). The critical modes
     are the eigenvectors of the negative eigenvalues just past the crossing (at most ``MAX_MODES``);
-    ``multiplicity`` is the number of negative eigenvalues there. Returns a SpecialPoint (kind
-    "branch", usable by :func:`~femshell.solvers.continuation.switch_branch`) or None when the branch
-    did not lose stability.
+    ``multiplicity`` is the number of negative eigenvalues there. Returns a SpecialPoint or None when
+    the branch did not lose stability. Its kind is "fold" when dλ/ds changed sign over the same step
+    (the branch turned back where the eigenvalue crossed zero: a limit point), else "branch" (usable by
+    :func:`~femshell.solvers.continuation.switch_branch`).
     """
     import scipy.sparse.linalg as spla
 
@@ -301,6 +306,7 @@ def loss_of_stability(d, branch):
         return None
     (ua, ea), (ub, eb) = branch.states[-2], branch.states[-1]
     nb = rows[-1]["n_negative"]
+    fold = rows[-2]["dlam_ds"] * rows[-1]["dlam_ds"] < 0
 
     def state(eps):
         prob.set_parameter(eps)
@@ -335,7 +341,7 @@ def loss_of_stability(d, branch):
     tu, tl = ub - ua, eb - ea
     w = prob.dof_weights()
     norm = math.sqrt(float(tu @ (w * tu)) / len(tu) + (tl / prob.parameter_scale) ** 2)
-    return SpecialPoint(kind="branch", parameter=0.5 * (ea + eb), s=float("nan"), u=0.5 * (ua + ub),
+    return SpecialPoint(kind="fold" if fold else "branch", parameter=0.5 * (ea + eb), s=float("nan"), u=0.5 * (ua + ub),
                         tangent=(tu / norm, tl / norm), eigenvalues=vals[order], modes=vecs[:, order],
                         multiplicity=int(nb), n_negative_before=0, n_negative_after=int(nb), step=len(rows) - 1,
                         bracket=(ea, eb), weights=w, parameter_scale=prob.parameter_scale)
@@ -346,8 +352,9 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
 
     ``verbose``: also pass ``log`` to the continuation (one line per step); ``law``: the membrane
     law (:class:`~femshell.shell.Material`).
-    Returns a dict: disk, branches (list of Branch), switch_points (SpecialPoint list), first
-    (the first loss of stability of the flat state or None), n_first, u, w, count, spectrum, relaxed,
+    Returns a dict: disk, branches (list of Branch), switch_points (SpecialPoint list), folds (the
+    fold SpecialPoints where the shell snapped), failed (why a switch failed, or None), first (the
+    first loss of stability of the flat state or None), n_first, u, w, count, spectrum, relaxed,
     n_negative_final, energy, wall_s.
     """
     t0 = time.perf_counter()
@@ -371,14 +378,22 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
     u, eps = branch.last
     end_stable = branch.status == "lam_stop" and [r for r in branch.rows if not r["special"]][-1]["n_negative"] == 0
     failed = None
+    folds = []
     while sp is not None and len(switches) <= MAX_SWITCHES:
-        switches.append(sp)
-        try:
-            branch = _follow_branch(d, sp, log=clog, label=f"switch {len(switches)}")
-        except ContinuationError as exc:
-            # no branch could be started along the mode: relax from the branch point pushed along it
-            failed = f"branch switching at eps = {sp.parameter:.5g} failed ({exc})"
-            log("    " + failed)
+        if sp.kind == "fold":
+            folds.append(sp)
+            log(f"    the branch turns back at a fold at eps = {sp.parameter:.5g} (dλ/ds changes sign where the "
+                f"eigenvalue crosses zero, mode n = {d.mode_wavenumber(sp.modes)}): nothing to switch to, the shell "
+                "snaps")
+        else:
+            switches.append(sp)
+            try:
+                branch = _follow_branch(d, sp, log=clog, label=f"switch {len(switches)}")
+            except ContinuationError as exc:
+                failed = f"branch switching at eps = {sp.parameter:.5g} failed ({exc})"
+                log("    " + failed)
+        if sp.kind == "fold" or failed:
+            # no branch to follow from here: relax from the critical point pushed along its mode
             phi = sp.modes[:, 0]
             u = sp.u + SWITCH_AMPLITUDE * d.h * phi / np.abs(phi[: 3 * d.n_vertices]).max()
             eps, end_stable = sp.parameter, False
@@ -406,7 +421,8 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
         log(f"    relaxed by stable Newton from eps = {eps:.4g} to {EPS_END}")
     n_neg = d.n_negative(u, EPS_END)
     w = d.deflection(u)
-    out = dict(disk=d, branches=branches, switch_points=switches, first=first, n_first=n_first, u=u, failed=failed,
+    out = dict(disk=d, branches=branches, switch_points=switches, folds=folds, first=first, n_first=n_first, u=u,
+               failed=failed,
                stretch_first=stretch_first,
                w=w, count=d.count(w), spectrum=d.spectrum(w), relaxed=relaxed, n_negative_final=n_neg,
                energy=float(d.model.energy(u)), wall_s=time.perf_counter() - t0)
@@ -450,6 +466,8 @@ def run(level, log=None):
                         f"ellipticity below {svk_ellipticity_stretch():.4f})" + at,
                         r["stretch_first"] if first else math.nan, None, None, nv, t()))
         rows.append(Row("branch switches (1 = the first bifurcation only)" + at, len(r["switch_points"]),
+                        None, None, nv, t()))
+        rows.append(Row("folds met by the branches followed (the shell snaps there)" + at, len(r["folds"]),
                         None, None, nv, t()))
         rows.append(Row("final state relaxed by stable Newton (1) or reached on a branch (0)" + at,
                         float(r["relaxed"]), None, None, nv, t()))
