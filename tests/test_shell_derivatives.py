@@ -276,3 +276,26 @@ def test_sparse_assembly_against_a_dense_sum(seed):
     touched = np.zeros((n_total, n_total), bool)
     touched[dofs[:, :, None], dofs[:, None, :]] = True
     assert asm.nnz == touched[np.ix_(free, free)].sum()       # the pattern: exactly the pairs that share an element
+
+
+def test_element_chunks_on_threads_give_the_same_bits(monkeypatch):
+    # chunks of elements evaluated on several threads: the same energy, gradient and Hessian, bit for bit
+    from femshell.shell import element
+
+    mesh = sphere(3.0, n_vertices=600)
+    model = ShellModel(mesh, Material(1.0, 0.3), natural_curvature(mesh.points, mesh.triangles, 0.1, 1 / 3.0))
+    u = model.initial_unknowns() + 1e-3 * np.random.default_rng(0).standard_normal(model.n_free)
+    out = {}
+    for threads in ("1", "3"):
+        monkeypatch.setenv("FEMSHELL_THREADS", threads)
+        assert element.element_threads() == int(threads)
+        out[threads] = (model.energy(u), model.gradient(u), model.hessian(u).data)
+    assert out["1"][0] == out["3"][0]
+    assert np.array_equal(out["1"][1], out["3"][1]) and np.array_equal(out["1"][2], out["3"][2])
+    assert len(mesh.triangles) > 2 * element.CHUNK_HESSIAN              # the Hessian did run in several chunks
+    monkeypatch.delenv("FEMSHELL_THREADS")
+    monkeypatch.setenv("MKL_NUM_THREADS", "1")
+    assert element.element_threads() == 1                               # a process confined to one core stays there
+    monkeypatch.setenv("FEMSHELL_THREADS", "two")
+    with pytest.raises(ValueError, match="FEMSHELL_THREADS = 'two' must be a whole number >= 1"):
+        element.element_threads()

@@ -200,6 +200,55 @@ CHUNK_SMALL, CHUNK = 256, 4096
 CHUNK_HESSIAN = 256
 
 
+def element_threads() -> int:
+    """How many chunks of elements are evaluated at once, each on its own thread.
+
+    ``FEMSHELL_THREADS`` if set; else the smaller of ``MKL_NUM_THREADS`` and ``OMP_NUM_THREADS``
+    where set (what confines a process to one core for its linear algebra confines the element
+    kernels too); else the CPUs this process may run on. Each chunk is one compiled call on
+    fixed-size arrays, so the results are the same bit for bit at any count; two threads
+    halve the time of the shell's Hessian on 2 cores (a 25 000-vertex sphere: 2.1–2.4 s on one,
+    1.17 s on two, measured).
+    """
+    for name in ("FEMSHELL_THREADS",):
+        if os.environ.get(name, "").strip():
+            return _thread_count(name)
+    given = [_thread_count(n) for n in ("MKL_NUM_THREADS", "OMP_NUM_THREADS") if os.environ.get(n, "").strip()]
+    if given:
+        return min(given)
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def _thread_count(name) -> int:
+    text = os.environ[name].strip()
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ValueError(f"{name} = {text!r} must be a whole number >= 1 (threads)")
+    return value
+
+
+_pool = {"threads": 0, "executor": None}
+
+
+def _executor(threads: int):
+    """A pool of ``threads`` workers, kept between calls (made anew when the count changes or after a fork)."""
+    if _pool["threads"] != threads:
+        if _pool["executor"] is not None:
+            _pool["executor"].shutdown(wait=False)
+        from concurrent.futures import ThreadPoolExecutor
+
+        _pool["executor"] = ThreadPoolExecutor(threads, thread_name_prefix="femshell-elements")
+        _pool["threads"] = threads
+    return _pool["executor"]
+
+
+if hasattr(os, "register_at_fork"):      # a forked child has none of the parent's threads
+    os.register_at_fork(after_in_child=lambda: _pool.update(threads=0, executor=None))
+
+
 def _batched(fn, chunk=None, chunk_small=None):
     """Vectorise ``fn`` over elements in fixed-size chunks.
 
@@ -222,14 +271,19 @@ def _batched(fn, chunk=None, chunk_small=None):
         n_big += rest > 0 and rest >= chunk - chunk_small
         starts = [(i * chunk, chunk) for i in range(n_big)]
         starts += [(s, chunk_small) for s in range(n_big * chunk, m, chunk_small)]
-        pieces = []
-        for start, size in starts:
+
+        def one(start_size):
+            start, size = start_size
             part = [a[start:start + size] for a in per_element]
             k = len(part[0])
             if k < size:
                 part = [np.concatenate([a, np.repeat(a[:1], size - k, axis=0)]) for a in part]
             out = compiled(part[0], part[1], part[2], part[3], part[4], alpha, beta, part[5], part[6], part[7])
-            pieces.append(jax.tree_util.tree_map(lambda o: np.asarray(o)[:k], out))
+            return jax.tree_util.tree_map(lambda o: np.asarray(o)[:k], out)
+
+        threads = min(element_threads(), len(starts))
+        # JAX releases the GIL while a compiled call runs: chunks on several threads run in parallel
+        pieces = list(_executor(threads).map(one, starts)) if threads > 1 else [one(s) for s in starts]
         if len(pieces) == 1:
             return pieces[0]
         return jax.tree_util.tree_map(lambda *o: np.concatenate(o), *pieces)
