@@ -290,12 +290,18 @@ def test_element_chunks_on_threads_give_the_same_bits(monkeypatch):
         monkeypatch.setenv("FEMSHELL_THREADS", threads)
         assert element.element_threads() == int(threads)
         out[threads] = (model.energy(u), model.gradient(u), model.hessian(u).data)
+        pool = element._pool["executor"]
+        model.hessian(u), model.gradient(u)
+        assert element._pool["executor"] is pool          # one pool for calls of any chunk count (was remade)
     assert out["1"][0] == out["3"][0]
     assert np.array_equal(out["1"][1], out["3"][1]) and np.array_equal(out["1"][2], out["3"][2])
     assert len(mesh.triangles) > 2 * element.CHUNK_HESSIAN              # the Hessian did run in several chunks
     monkeypatch.delenv("FEMSHELL_THREADS")
     monkeypatch.setenv("MKL_NUM_THREADS", "1")
     assert element.element_threads() == 1                               # a process confined to one core stays there
+    monkeypatch.setenv("MKL_NUM_THREADS", "0")
+    monkeypatch.setenv("OMP_NUM_THREADS", "3,1")                       # OpenMP's nested form: 3 at the top
+    assert element.element_threads() == 3
     monkeypatch.setenv("FEMSHELL_THREADS", "two")
     with pytest.raises(ValueError, match="FEMSHELL_THREADS = 'two' must be a whole number >= 1"):
         element.element_threads()

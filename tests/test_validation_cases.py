@@ -67,14 +67,21 @@ def test_disk_loss_of_stability_where_the_branch_turns_is_a_fold():
 
     from femshell.validation import disk_wrinkles as dw
 
+    import scipy.sparse.linalg as spla
+
     d = dw.Disk(2.0, 3.0, 3)
     u0 = d.model.initial_unknowns()
+    d.problem.set_parameter(0.10001)
+    phi = spla.eigsh(d.model.hessian(u0), k=1, sigma=0.0, v0=np.ones(len(u0)))[1][:, 0]     # the softest mode
+    other = np.random.default_rng(0).standard_normal(len(u0))
+    other -= (other @ phi) * phi                                                             # orthogonal to it
     kinds = []
-    for sign in (+1.0, -1.0):
+    # (dλ/ds after the crossing, the step's direction): a fold needs both the turn and the step along the mode
+    for turn, step in ((+1.0, phi), (-1.0, phi), (-1.0, other)):
         rows = [{"special": "", "n_negative": 0, "dlam_ds": 0.1, "parameter": 0.1},
-                {"special": "", "n_negative": 1, "dlam_ds": sign * 0.1, "parameter": 0.10001}]
-        branch = SimpleNamespace(status="callback", rows=rows, states=[(u0, 0.1), (u0 + 0.0, 0.10001)])
+                {"special": "", "n_negative": 1, "dlam_ds": turn * 0.1, "parameter": 0.10001}]
+        branch = SimpleNamespace(status="callback", rows=rows, states=[(u0, 0.1), (u0 + 1e-6 * step, 0.10001)])
         sp = dw.loss_of_stability(d, branch)
         assert sp.bracket == (0.1, 0.10001) and np.isfinite(sp.eigenvalues).all()
-        kinds.append(sp.kind)
-    assert kinds == ["branch", "fold"]
+        kinds.append((sp.kind, round(sp.info["mode_tangent_cosine"], 3)))
+    assert kinds == [("branch", 1.0), ("fold", 1.0), ("branch", 0.0)]

@@ -1355,14 +1355,20 @@ class ContinuationRunner(BaseRunner):
         if self.flat and self.r2 is not None and sp.modes.shape[1]:
             from ..analysis import azimuthal_spectrum
             # the dominant azimuthal wavenumber of the critical mode, 0 for a dome (counting wrinkles from k = 1 up
-            # called a dome with a trace of tilt "1 wave")
-            try:
-                amp = azimuthal_spectrum(self.mesh.points,
-                                         self.deflection(model.mode_displacements(sp.modes[:, 0])[:, 2]),
-                                         self._count_radius(), triangles=self.mesh.triangles)
-                info["mode_n"] = int(np.argmax(amp))
-            except ValueError:
-                pass
+            # called a dome with a trace of tilt "1 wave"), from the power on four circles about R2 as the
+            # disk-wrinkles validation case finds it: one circle can pass where the mode's axisymmetric part is 0
+            z = self.deflection(model.mode_displacements(sp.modes[:, 0])[:, 2])
+            r_mesh = float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max())
+            power = 0.0
+            for f in (0.5, 0.85, 1.15, 1.5):
+                try:                                    # a circle outside a non-circular flat mesh is skipped
+                    if f * self.r2 < 0.98 * r_mesh:
+                        power = power + azimuthal_spectrum(self.mesh.points, z, f * self.r2,
+                                                           triangles=self.mesh.triangles) ** 2
+                except ValueError:
+                    pass
+            if np.ndim(power):
+                info["mode_n"] = int(np.argmax(power))
         self.specials.append(info)
         if not sp.located:
             self.p.say(f"  found {sp.label} between {self.param} = {sp.bracket[0]:.8g} and {sp.bracket[1]:.8g}, not "

@@ -82,6 +82,7 @@ branches (:func:`batch_hessian_grouped`).
 from __future__ import annotations
 
 import os
+import threading
 
 import jax
 import numpy as np
@@ -210,43 +211,38 @@ def element_threads() -> int:
     halve the time of the shell's Hessian on 2 cores (a 25 000-vertex sphere: 2.1–2.4 s on one,
     1.17 s on two, measured).
     """
-    for name in ("FEMSHELL_THREADS",):
-        if os.environ.get(name, "").strip():
-            return _thread_count(name)
-    given = [_thread_count(n) for n in ("MKL_NUM_THREADS", "OMP_NUM_THREADS") if os.environ.get(n, "").strip()]
+    text = os.environ.get("FEMSHELL_THREADS", "").strip()
+    if text:
+        if not (text.isdigit() and int(text) >= 1):
+            raise ValueError(f"FEMSHELL_THREADS = {text!r} must be a whole number >= 1 (threads)")
+        return int(text)
+    # the libraries' own variables as they read them: "2,1" (OpenMP's nested levels) is 2 at the top;
+    # what they would ignore ("", "0", "many") is ignored here too
+    given = [int(v) for v in (os.environ.get(n, "").split(",")[0].strip() for n in ("MKL_NUM_THREADS", "OMP_NUM_THREADS"))
+             if v.isdigit() and int(v) >= 1]
     if given:
         return min(given)
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
-def _thread_count(name) -> int:
-    text = os.environ[name].strip()
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise ValueError(f"{name} = {text!r} must be a whole number >= 1 (threads)")
-    return value
-
-
-_pool = {"threads": 0, "executor": None}
+_pool = {"threads": 0, "executor": None, "lock": threading.Lock()}
 
 
 def _executor(threads: int):
     """A pool of ``threads`` workers, kept between calls (made anew when the count changes or after a fork)."""
-    if _pool["threads"] != threads:
-        if _pool["executor"] is not None:
-            _pool["executor"].shutdown(wait=False)
-        from concurrent.futures import ThreadPoolExecutor
+    with _pool["lock"]:
+        if _pool["threads"] != threads:
+            if _pool["executor"] is not None:
+                _pool["executor"].shutdown(wait=False)
+            from concurrent.futures import ThreadPoolExecutor
 
-        _pool["executor"] = ThreadPoolExecutor(threads, thread_name_prefix="femshell-elements")
-        _pool["threads"] = threads
-    return _pool["executor"]
+            _pool["executor"] = ThreadPoolExecutor(threads, thread_name_prefix="femshell-elements")
+            _pool["threads"] = threads
+        return _pool["executor"]
 
 
 if hasattr(os, "register_at_fork"):      # a forked child has none of the parent's threads
-    os.register_at_fork(after_in_child=lambda: _pool.update(threads=0, executor=None))
+    os.register_at_fork(after_in_child=lambda: _pool.update(threads=0, executor=None, lock=threading.Lock()))
 
 
 def _batched(fn, chunk=None, chunk_small=None):
@@ -281,9 +277,12 @@ def _batched(fn, chunk=None, chunk_small=None):
             out = compiled(part[0], part[1], part[2], part[3], part[4], alpha, beta, part[5], part[6], part[7])
             return jax.tree_util.tree_map(lambda o: np.asarray(o)[:k], out)
 
-        threads = min(element_threads(), len(starts))
+        threads = element_threads()
         # JAX releases the GIL while a compiled call runs: chunks on several threads run in parallel
-        pieces = list(_executor(threads).map(one, starts)) if threads > 1 else [one(s) for s in starts]
+        if threads > 1 and len(starts) > 1:
+            pieces = list(_executor(threads).map(one, starts))
+        else:
+            pieces = [one(s) for s in starts]
         if len(pieces) == 1:
             return pieces[0]
         return jax.tree_util.tree_map(lambda *o: np.concatenate(o), *pieces)
