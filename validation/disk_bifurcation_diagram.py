@@ -13,10 +13,10 @@ turns at a further branch point) and draws
   minimum (no negative eigenvalue), dashed where it is not, branch points as circles labelled by
   the azimuthal wavenumber n of their critical mode and the number of eigenvalues that cross, a fold
   where the last branch turned back and the shell snapped (h = 0.25) as a square;
-* right: the critical mode of each branch point (its out-of-plane part, seen from above, r ≤ 2 R2)
-  and the state reached at ε = 0.5.
+* right: the critical mode of each branch point and fold (its out-of-plane part, seen from above,
+  r ≤ 2 R2) and the state reached at ε = 0.5.
 
-    python validation/disk_bifurcation_diagram.py [--h 2] [--R2 3] [--resolution 8]
+    python validation/disk_bifurcation_diagram.py [--h 2] [--R2 3] [--resolution 8] [--law svk]
         [--out docs/images/disk-bifurcation-diagram.png]
 
 It also writes the branches as CSV next to the picture (NAME.csv: branch, ε, |w|max, wrinkles,
@@ -52,8 +52,8 @@ def draw(result, flat, path, title):
     import matplotlib.pyplot as plt
 
     d = result["disk"]
-    sps = result["switch_points"]
-    n_panels = len(sps) + 1
+    sps, folds = result["switch_points"], result["folds"]
+    n_panels = len(sps) + len(folds) + 1
     fig = plt.figure(figsize=(5 + 2.6 * n_panels, 4.8))
     gs = fig.add_gridspec(1, 2, width_ratios=[5, 2.6 * n_panels])
     ax = fig.add_subplot(gs[0])
@@ -76,7 +76,7 @@ def draw(result, flat, path, title):
                 / d.h, "ko", mfc="w")
         ax.annotate(f"BP{k + 1}: n={n}, {sp.multiplicity} mode(s)", (sp.parameter, 0.0), textcoords="offset points",
                     xytext=(4, 8 + 12 * k), fontsize=8)
-    for k, sp in enumerate(result["folds"]):      # where the last branch turned back and the shell snapped
+    for k, sp in enumerate(folds):      # where the last branch turned back and the shell snapped
         ax.plot(sp.parameter, branch_points(result["branches"][-1])[1][-1] / d.h, "ks", mfc="w")
         ax.annotate(f"LP{k + 1}: n={d.mode_wavenumber(sp.modes)}, snap", (sp.parameter, 0.0),
                     textcoords="offset points", xytext=(4, 8 + 12 * (len(sps) + k)), fontsize=8)
@@ -93,6 +93,7 @@ def draw(result, flat, path, title):
     tri = d.triangles[near]
     fields = [(f"BP{k + 1} mode, ε = {sp.parameter:.4g}", d.mode_deflection(sp.modes[:, 0]))
               for k, sp in enumerate(sps)]
+    fields += [(f"LP{k + 1} mode, ε = {sp.parameter:.4g}", d.mode_deflection(sp.modes[:, 0])) for k, sp in enumerate(folds)]
     fields.append((f"w at ε = {EPS_END}", result["w"]))
     for k, (name, z) in enumerate(fields):
         a = fig.add_subplot(sub[k])
@@ -116,6 +117,8 @@ def main(argv=None):
     ap.add_argument("--h", type=float, default=2.0)
     ap.add_argument("--R2", type=float, default=3.0)
     ap.add_argument("--resolution", type=int, default=8, help="edges per R2 along the grown circle")
+    ap.add_argument("--law", choices=("svk", "neo-hookean"), default="svk",
+                    help="membrane law (the disk-wrinkles case's full level runs neo-hookean)")
     ap.add_argument("--out", type=Path, default=Path("docs/images/disk-bifurcation-diagram.png"),
                     help="picture, with its .csv beside it (default: the committed "
                          "docs/images/disk-bifurcation-diagram.png, relative to the current directory; replaced)")
@@ -128,7 +131,7 @@ def main(argv=None):
         check_writable_dir(args.out.parent, "--out's directory")    # before the continuation, not after
     except ValueError as exc:
         sys.exit(str(exc))
-    result = follow(args.h, args.R2, args.resolution, log=print)
+    result = follow(args.h, args.R2, args.resolution, log=print, law=args.law)
     d = result["disk"]
     flat = _follow_branch(d, None, callback=None, max_steps=200)       # past the first instability
     print(f"flat branch continued past its instability: {flat.status} ({flat.message})")
