@@ -71,8 +71,8 @@ class SparseAssembler:
 
 def _matrix_pattern(local: np.ndarray, n: int):
     """CSR pattern (indptr, indices) of the sum of the element matrices over ``n`` free unknowns, the
-    position in it of every element matrix entry (m k k,: ``nnz`` for an entry touching a fixed
-    unknown, marked -1 in ``local``) and ``nnz``.
+    position in it of every element matrix entry (an (m k²,) array; ``nnz``, one past the last, for
+    an entry touching a fixed unknown, marked -1 in ``local``) and ``nnz``.
 
     The element rows (e, a) are grouped by their unknown (a sort of m k integers), their columns
     sorted within each row by scipy's CSR index sort, and repeated columns merged: the same pattern

@@ -40,11 +40,11 @@ components (:class:`~femshell.shell.ShellModel` does this for a shell without su
    stability on the way (a point with a negative eigenvalue after stable ones), that point is
    bisected the same way and the continuation switches again, onto the branch born there (at most
    ``MAX_SWITCHES`` times). So a secondary bifurcation to an azimuthal mode on the dome branch is
-   seen whatever its n. A loss of stability where dλ/ds changes sign too is a fold (limit point):
-   the branch turns back there and no branch crosses it, so there is nothing to switch to (the
-   mesh's imperfect symmetry turns a symmetry-breaking pitchfork of the ideal disk into a fold of
-   the branch followed, the other half of the pitchfork lying apart); the shell then snaps, and
-   step 3 finds where from the fold pushed along its mode.
+   seen whatever its n. A loss of stability where dλ/ds changes sign too, with the critical mode
+   along the branch, is a fold (limit point): the branch turns back there and no branch crosses it,
+   so there is nothing to switch to (at h = 0.25 probably a symmetry-breaking pitchfork of the ideal
+   disk that the mesh's imperfect symmetry unfolds, the other half of the pitchfork lying apart); the
+   shell then snaps, and step 3 finds where from the fold pushed along its mode.
 3. **Final state**: if the last branch reaches ε = 0.5 unstable (or stops early), the state is
    relaxed to a stable equilibrium at ε = 0.5 by Newton with saddle escape
    (:func:`~femshell.solvers.newton.minimize`, ``stable=True``), after stepping ε to 0.5 if
