@@ -278,7 +278,7 @@ def test_sparse_assembly_against_a_dense_sum(seed):
     assert asm.nnz == touched[np.ix_(free, free)].sum()       # the pattern: exactly the pairs that share an element
 
 
-def test_element_chunks_on_threads_give_the_same_bits(monkeypatch):
+def test_element_chunks_on_threads_give_the_same_bits(monkeypatch, tmp_path):
     # chunks of elements evaluated on several threads: the same energy, gradient and Hessian, bit for bit
     from femshell.shell import element
 
@@ -302,6 +302,15 @@ def test_element_chunks_on_threads_give_the_same_bits(monkeypatch):
     monkeypatch.setenv("MKL_NUM_THREADS", "0")
     monkeypatch.setenv("OMP_NUM_THREADS", "3,1")                       # OpenMP's nested form: 3 at the top
     assert element.element_threads() == 3
+    # no variable set: the CPUs, within a container's limit (cgroup v2 "200000 100000": 2 CPUs; "max": none)
+    monkeypatch.delenv("MKL_NUM_THREADS")
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    limit = tmp_path / "cpu.max"
+    monkeypatch.setattr(element, "CGROUP_CPU_FILES", ((str(limit),),))
+    monkeypatch.setattr(element.os, "sched_getaffinity", lambda pid: set(range(16)))
+    for text, expected in (("200000 100000", 2), ("50000 100000", 1), ("max 100000", 16)):
+        limit.write_text(text + "\n")
+        assert element.element_threads() == expected, text
     monkeypatch.setenv("FEMSHELL_THREADS", "two")
     with pytest.raises(ValueError, match="FEMSHELL_THREADS = 'two' must be a whole number >= 1"):
         element.element_threads()

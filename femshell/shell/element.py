@@ -206,7 +206,7 @@ def element_threads() -> int:
 
     ``FEMSHELL_THREADS`` if set; else the smaller of ``MKL_NUM_THREADS`` and ``OMP_NUM_THREADS``
     where set (what confines a process to one core for its linear algebra confines the element
-    kernels too); else the CPUs this process may run on. Each chunk is one compiled call on
+    kernels too); else the CPUs this process may run on, within a container's CPU limit. Each chunk is one compiled call on
     fixed-size arrays, so the results are the same bit for bit at any count; two threads
     halve the time of the shell's Hessian on 2 cores (a 25 000-vertex sphere: 2.1–2.4 s on one,
     1.17 s on two, measured).
@@ -222,7 +222,28 @@ def element_threads() -> int:
              if v.isdigit() and int(v) >= 1]
     if given:
         return min(given)
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    quota = _cpu_quota()
+    return max(1, min(cpus, quota)) if quota else cpus
+
+
+#: where a container's CPU limit is read (cgroup v2, then v1)
+CGROUP_CPU_FILES = (("/sys/fs/cgroup/cpu.max",), ("/sys/fs/cgroup/cpu/cpu.cfs_quota_us", "/sys/fs/cgroup/cpu/cpu.cfs_period_us"))
+
+
+def _cpu_quota():
+    """Whole CPUs a container's CPU limit allows (``docker --cpus=2`` on a larger host: 2), None without one."""
+    for files in CGROUP_CPU_FILES:
+        try:
+            fields = " ".join(open(f).read().strip() for f in files).split()
+        except (OSError, ValueError):
+            continue
+        try:
+            quota, period = int(fields[0]), int(fields[1])      # v2 "max 100000" has no number: no limit
+        except (ValueError, IndexError):
+            return None
+        return max(1, quota // period) if quota > 0 and period > 0 else None
+    return None
 
 
 _pool = {"threads": 0, "executor": None, "lock": threading.Lock()}
