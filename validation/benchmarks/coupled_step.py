@@ -123,6 +123,12 @@ MKL's sequential layer (bit-for-bit resumes, ``femshell.solvers.linear``): 7.32 
 ``MKL_THREADING_LAYER=GNU`` in the environment the Cholesky runs on both cores: **5.58 s** per
 step (1.59 s, 1.80 s, 1.74 s), setup 62 s. (Before the fix that pins the thread count for
 every PARDISO phase, that setting segfaulted at 25 007 vertices.)
+
+Element threads (2026-11-27, ``--sizes 25000 --full --warmup 3 --steps 6``, one run at a time,
+load 1.4-2.8, MKL sequential): the element kernels' chunks on one thread (``FEMSHELL_THREADS=1``)
+10.13 s per step (Hessian 2.46 s, quasi-Newton 2.56 s, Cholesky 4.34 s), setup 113 s; on two
+(the default on 2 cores) **9.21 s** (1.97, 2.09, 4.59 s), setup 109 s. The results are the same
+bit for bit (``femshell.shell.element.element_threads``).
 """
 
 from __future__ import annotations
