@@ -1063,6 +1063,8 @@ class ContinuationRunner(BaseRunner):
         self.flat = flat
         self.free_body = not sc["boundary"]
         self.r2 = gr.get("inner_radius") if gr["law"] == "inner_region" else None
+        # the flat mesh's largest distance from the axis: the circles about R2 must stay inside it
+        self.r_mesh = float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max())
         self.segments = []        # finished segments' rows (all branches)
         self.cur_rows = []
         self.cur_label = "primary"
@@ -1091,7 +1093,7 @@ class ContinuationRunner(BaseRunner):
 
     def _count_radius(self):
         """The circle of the wrinkle count: r = 1.15 R2, just outside the grown region (inside the mesh)."""
-        return min(1.15 * self.r2, 0.98 * float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max()))
+        return min(1.15 * self.r2, 0.98 * self.r_mesh)
 
     def record(self, u):
         x = self.parts.model.positions(u)
@@ -1358,13 +1360,10 @@ class ContinuationRunner(BaseRunner):
             # called a dome with a trace of tilt "1 wave"), from the power on four circles about R2 as the
             # disk-wrinkles validation case finds it: one circle can pass where the mode's axisymmetric part is 0
             z = self.deflection(model.mode_displacements(sp.modes[:, 0])[:, 2])
-            r_mesh = float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max())
             power = 0.0
-            for f in (0.5, 0.85, 1.15, 1.5):
+            for r in (f * self.r2 for f in (0.5, 0.85, 1.15, 1.5) if f * self.r2 < 0.98 * self.r_mesh):
                 try:                                    # a circle outside a non-circular flat mesh is skipped
-                    if f * self.r2 < 0.98 * r_mesh:
-                        power = power + azimuthal_spectrum(self.mesh.points, z, f * self.r2,
-                                                           triangles=self.mesh.triangles) ** 2
+                    power = power + azimuthal_spectrum(self.mesh.points, z, r, triangles=self.mesh.triangles) ** 2
                 except ValueError:
                     pass
             if np.ndim(power):
