@@ -2,11 +2,11 @@
 
 Each tutorial is a page NAME.md and a script NAME.py. The scripts run here with ``--quick``
 (tiny meshes) in a temporary directory, in a subprocess with this Python, and their outputs
-are checked for existence and sane values. Quick runs measured on this machine with the
-2 cores free: buckling 26 s, convergence 22 s, mechanochemistry 44 s (most of it imports
-and JAX compilation in two or three processes; 3-5x longer when the cores are shared).
-All three run in the CI selection (about 1.5 min together), so a tutorial that breaks is
-seen at once. The page/script consistency checks take under a second.
+are checked for existence and sane values. Quick runs measured on one core (2026-11-27, the
+kernels' compilation cached): buckling 35 s, mechanochemistry 41 s, convergence about as
+long (most of it imports and loading the compiled kernels in two or three processes).
+All three run in the CI selection (about 2.5 min together with the cores shared), so a
+tutorial that breaks is seen at once. The page/script consistency checks take under a second.
 """
 
 import json
@@ -54,6 +54,17 @@ def test_buckling_page_shows_the_embedded_scene():
     scene = embedded_scene_path("clamped-plate-buckling").read_text(encoding="utf-8")
     blocks = code_blocks(TUTORIALS / "buckling.md", "toml")
     assert blocks and all(b in scene for b in blocks)
+
+
+def test_mechanochemistry_page_shows_the_scene_list(capsys):
+    """The page's `femshell scenes` listing is what the command prints (descriptions say what is obtained)."""
+    from femshell.cli import main
+
+    main(["scenes"])
+    listing = capsys.readouterr().out
+    page = (TUTORIALS / "mechanochemistry.md").read_text(encoding="utf-8")
+    shown = page.split('femshell("femshell scenes")', 1)[1].split("```console\n", 1)[1].split("```", 1)[0]
+    assert shown == listing
 
 
 def run_tutorial(name, tmp_path, timeout=900):

@@ -35,7 +35,7 @@ from femshell.shell import Clamped, DeadPressure, Material, ShellModel, flat_res
 from femshell.validation.common import linear_response, observed_order  # noqa: E402
 
 ap = argparse.ArgumentParser(description="Mesh convergence of a clamped plate under pressure.")
-ap.add_argument("--quick", action="store_true", help="three coarse meshes (seconds)")
+ap.add_argument("--quick", action="store_true", help="three coarse meshes instead of five")
 ap.add_argument("--out", type=Path, default=Path("tutorial-out/convergence"), help="output directory")
 args = ap.parse_args()
 out = args.out
@@ -124,8 +124,12 @@ case = json.loads((out / "validate" / "clamped-plate-pressure.json").read_text()
 for row in case["rows"]:
     if row["quantity"].startswith(("clamped", "observed order of clamped")):
         print(f"  {row['quantity']:<55} {row['value']:.6f}  vertices {row['n_vertices']}  {row['wall_s']:.2f} s")
-subprocess.run([sys.executable, str(ROOT / "validation" / "convergence.py"), "--results", str(out / "validate"),
-                "--doc", str(out / "accuracy.md"), "--images", str(out / "images")], check=True)
+tables = ROOT / "validation" / "convergence.py"      # in the source tree, not in the installed package
+if tables.exists():
+    subprocess.run([sys.executable, str(tables), "--results", str(out / "validate"),
+                    "--doc", str(out / "accuracy.md"), "--images", str(out / "images")], check=True)
+else:
+    print(f"no {tables}: this script runs outside a femshell checkout, so accuracy.md is not written")
 
 # %% [results]
 results = {"w0_exact": w_exact(0.0), "rows": rows, "observed_order": p_all, "observed_order_finest": p_fine,

@@ -86,9 +86,10 @@ print(f"last frame: {spots.n_spots} regions with c > c* = {c_star} ({spots.kind}
 femshell(f"femshell render {run} --every 2")
 
 # %% [python api]
-params = MechanochemicalModel(h0=2.0, radius=15.0, c_star=0.1, D=0.0)
+params = MechanochemicalModel(h0=2.0, c_star=0.1, D=0.0, membrane_law="neo-hookean")   # the scene's physics
 mesh = sphere(15.0, n_vertices=n_vertices)
-loop = CoupledLoop(mesh, params, TimeStepping(t_final=t_final, ds_max=0.1, dt_max=0.5), c0=InitialSpot())
+stepping = TimeStepping(t_final=t_final, ds_max=0.1, dt_max=0.5, ramp_ds=0.25)     # and its [solver] keys
+loop = CoupledLoop(mesh, params, stepping, c0=InitialSpot())
 
 
 def report(record, loop):
