@@ -6,7 +6,8 @@ callbacks for output and checkpoints and stores :meth:`CoupledLoop.state_dict`.
 One step of length dt, from an accepted state (t, c, u) where u is a stable equilibrium
 of the shell grown by s(c):
 
-1. chemistry on the CURRENT surface x(u): c⁺ = step(c, dt, P(H(u))) with
+1. chemistry on the CURRENT surface x(u): c⁺ = step(c, dt, P(H(u))) (or P extrapolated to
+   the step's midpoint, ``TimeStepping.source_rule``) with
    :class:`~femshell.chemistry.ReactionDiffusion` (degradation integrated exactly, diffusion
    implicitly; for D = 0 the exact update node by node, no stiffness built);
 2. step control: Δs = max over elements |s(c⁺) − s(c)|; if Δs > ``ds_max`` the step
@@ -485,6 +486,36 @@ def feedback_step_limit(g: float, beta: float, rho: float, exponential: bool) ->
     return (1.0 + rho) / (-g - rho * beta)
 
 
+def stable_extrapolation(g: float, beta: float, rho: float, dt: float, h_prev: float) -> float:
+    r"""The largest fraction θ ∈ [0, 1] of the source's extrapolation that keeps a ≥ −rho on a step dt.
+
+    With the source P_n + θ (r/2)(P_n − P_{n−1}), r = dt/h_prev (θ = 1: Adams–Bashforth 2, see
+    :class:`TimeStepping` ``source_rule``), a mode of gain g (as in :func:`feedback_step_limit`)
+    follows δ_{n+1} = (1 − q) δ_n + (q g/β)((1 + θr/2) δ_n − (θr/2) δ_{n−1}), q = 1 − e^{−β dt}.
+    Its roots ζ are real, one of each sign when g < 0; the negative one is ≥ −ρ iff the
+    characteristic polynomial is ≥ 0 at −ρ:
+
+        q (ρ + G (ρ + (1 + ρ) θr/2)) ≤ ρ (1 + ρ),   G = −g/β.
+
+    At θ = 0 this is the held source's bound q (1 + G) ≤ 1 + ρ, so θ falls from 1 to 0 as dt
+    approaches that bound; full extrapolation (θ = 1, r = 1) needs dt ≲ 0.4 of it where the
+    feedback is strong (G ≫ 1, ρ = 0.5). A positive or unknown (nan) g never limits: θ = 1.
+
+    >>> from femshell.coupled import stable_extrapolation
+    >>> [round(stable_extrapolation(-20.0, 1.0, 0.5, dt, 0.03), 3) for dt in (0.02, 0.03, 0.05, 0.08)]
+    [1.0, 0.992, 0.195, 0.0]
+    """
+    if not (math.isfinite(g) and g < 0 and beta > 0):
+        return 1.0
+    q = -math.expm1(-beta * dt)
+    G, r = -g / beta, dt / h_prev
+    theta = (rho * (1.0 + rho) / q - rho - G * rho) / (G * (1.0 + rho) * 0.5 * r)
+    return float(min(1.0, max(0.0, theta)))
+
+
+SOURCE_RULES = ("start", "extrapolated")
+
+
 @dataclass(frozen=True)
 class TimeStepping:
     """Controls of the time loop (times in 1/β).
@@ -541,6 +572,13 @@ class TimeStepping:
         oscillating mode, estimated from the last step, at a ≥ −this (module docstring,
         :func:`feedback_step_limit`; 0 < value ≤ 1: 1 is the stability limit itself, smaller
         damps an oscillation faster). 0: no bound.
+    source_rule : the source P(H) the chemistry holds over a step. "start": P of the step's
+        start (the staggering above, first order in dt). "extrapolated": P at the step's
+        midpoint extrapolated from the last two accepted states (Adams–Bashforth 2, second
+        order, no extra solve), as far as that keeps an oscillation within
+        ``feedback_amplification`` (:func:`stable_extrapolation`: a strong negative feedback
+        allows full extrapolation only on 0.4 of the held source's dt; the step keeps its
+        length and extrapolates less, down to P_n at the held source's own bound).
     max_steps : stop after this many accepted steps in one call of :meth:`CoupledLoop.run`.
     """
 
@@ -568,6 +606,7 @@ class TimeStepping:
     snap_max_iter: int = 400
     newton_stall: int = 10
     feedback_amplification: float = 0.5
+    source_rule: str = "start"
     max_steps: int | None = None
 
     def __post_init__(self):
@@ -596,6 +635,8 @@ class TimeStepping:
         _finite("snap_ds", self.snap_ds, 0.0)
         _finite("feedback_amplification", self.feedback_amplification, 0.0, 1.0)
         _integer("snap_max_iter", self.snap_max_iter, 0)
+        if self.source_rule not in SOURCE_RULES:
+            raise ValueError(f"source_rule must be one of {SOURCE_RULES}, got {self.source_rule!r}")
         if self.max_steps is not None:
             _integer("max_steps", self.max_steps, 0, "None or an integer >= 0")
         _store_numbers(self)
@@ -747,6 +788,8 @@ class CoupledLoop:
         self.last_newton_iterations = 0
         self._last_ds = 0.0
         self._u_prev, self._h_prev = None, 0.0
+        self._source_prev = None        # P at the previous accepted state (source_rule = "extrapolated")
+        self._extrapolate = 0.0         # the fraction of its source's extrapolation the next step takes
         self._last_rates = (float("nan"), float("nan"))
         self._last_gain = float("nan")
         self._last_stable = None
@@ -994,7 +1037,7 @@ class CoupledLoop:
                                        + (self._steep_switch_hint(ds) if reason.startswith("max |Δs|") else "")
                                        + self._non_elliptic_hint())
                 try:
-                    c_new = self.chemistry.step(self.c, h, source=source, points=points)
+                    c_new = self.chemistry.step(self.c, h, source=self._held_source(source, h), points=points)
                 except (ValueError, FloatingPointError, ArithmeticError, LinearSolverError) as exc:
                     raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: the chemistry step failed: "
                                        f"{exc}") from exc
@@ -1055,6 +1098,20 @@ class CoupledLoop:
                 self.load_state_dict(before)      # an error while committing: not half a step
                 raise
 
+    def _held_source(self, source, h: float):
+        """The source the chemistry holds over a step of length h from the current state.
+
+        ``source_rule = "extrapolated"``: P at the step's midpoint extrapolated from the last two
+        accepted states (Adams–Bashforth 2), P_n + (h / 2h_prev)(P_n − P_{n−1}), kept within
+        P's range [0, w Hs], by the fraction of the extrapolation that is stable
+        (:func:`stable_extrapolation`, decided with the next dt). Otherwise, and where there is no
+        previous state (the first step, after a snap), P_n itself.
+        """
+        if not (self._extrapolate > 0 and self._source_prev is not None and self._h_prev > 0):
+            return source
+        mid = source + (0.5 * self._extrapolate * h / self._h_prev) * (source - self._source_prev)
+        return np.clip(mid, 0.0, self.params.w * self.params.Hs)
+
     def _accept(self, c_new, s_new, res, h, last, ds, cuts, snapped, points, source, wall0) -> StepRecord:
         """Commit the step of length h to the attempt's c, stretch and equilibrium; returns its record."""
         st = self.stepping
@@ -1063,6 +1120,7 @@ class CoupledLoop:
         self.c = c_new
         # a snap is no trend: the secant through it would predict a second jump
         self._u_prev, self._h_prev = (None, 0.0) if snapped else (self.u, h)
+        self._source_prev = None if snapped else source
         self.n_snaps += int(snapped)
         self.u = res.u
         self.s = s_new
@@ -1119,7 +1177,10 @@ class CoupledLoop:
         if st.feedback_amplification > 0:
             nxt = min(nxt, feedback_step_limit(self._last_gain, p.beta, st.feedback_amplification,
                                                exponential=True))
-        return float(min(st.dt_max, max(st.dt_min, nxt)))
+        nxt = float(min(st.dt_max, max(st.dt_min, nxt)))
+        self._extrapolate = (stable_extrapolation(self._last_gain, p.beta, st.feedback_amplification or 1.0, nxt, h)
+                             if st.source_rule == "extrapolated" else 0.0)
+        return nxt
 
     def record(self, dt: float = 0.0, cuts: int = 0, wall_s: float = 0.0, snapped: bool = False) -> StepRecord:
         """The :class:`StepRecord` of the current state."""
@@ -1229,11 +1290,13 @@ class CoupledLoop:
         """Everything the loop needs to continue bit for bit: numbers and arrays only (no RNG).
 
         Keys: version, t, dt, step, c (n,), u (free unknowns), u_prev and h_prev (the
-        previous accepted state and step, for the secant predictor; u_prev empty at
-        step 0), stationary_count, n_rejected, n_snaps, newton_total, last_newton_iterations,
-        last_ds, n_vertices, n_free, held_cholesky (whether the last state's Hessian is held as
-        a Cholesky factor for the quasi-Newton start of the next step: a resumed loop factorises
-        it again, so that it continues exactly as the uninterrupted one), pattern_anchor_t,
+        previous accepted state and step, for the secant predictor and the extrapolated
+        source; u_prev empty at step 0), extrapolate (the fraction θ of :func:`stable_extrapolation`
+        the next step takes), stationary_count, n_rejected, n_snaps, newton_total,
+        last_newton_iterations, last_ds, n_vertices, n_free, held_cholesky (whether the last
+        state's Hessian is held as a Cholesky factor for the quasi-Newton start of the next step:
+        a resumed loop factorises it again, so that it continues exactly as the uninterrupted
+        one), pattern_anchor_t,
         pattern_anchor_c and pattern_anchor_points (when and with which c and shape the pattern
         last changed, for ``stationary_pattern_time``; left out when it is not followed).
         Store with :func:`femshell.io.save_checkpoint`; parameters go in its meta.
@@ -1245,7 +1308,7 @@ class CoupledLoop:
                 "newton_total": int(self.newton_total), "last_newton_iterations": int(self.last_newton_iterations),
                 "last_ds": float(self._last_ds), "n_vertices": int(self.mesh.n_vertices),
                 "u_prev": (np.zeros(0) if self._u_prev is None else np.asarray(self._u_prev, float).copy()),
-                "h_prev": float(self._h_prev),
+                "h_prev": float(self._h_prev), "extrapolate": float(self._extrapolate),
                 "n_free": int(self.shell.n_free),
                 "held_cholesky": int(self._held_cholesky()),
                 **self._pattern_anchor_state()}
@@ -1298,6 +1361,11 @@ class CoupledLoop:
         u_prev = np.array(state.get("u_prev", np.zeros(0)), dtype=float)
         self._u_prev = u_prev if u_prev.shape == u.shape else None
         self._h_prev = float(state.get("h_prev", 0.0)) if self._u_prev is not None else 0.0
+        self._source_prev = None
+        self._extrapolate = (float(state.get("extrapolate", 0.0))
+                             if self.stepping.source_rule == "extrapolated" else 0.0)
+        if self._extrapolate > 0 and self._u_prev is not None:
+            self._source_prev = self.params.source(self.growth.mean_curvature(self._u_prev)[1])
         self._last_rates = (float("nan"), float("nan"))
         self._last_gain = float("nan")
         self._last_stable = None

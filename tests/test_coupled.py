@@ -10,10 +10,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scipy.optimize import minimize_scalar
+from scipy.optimize import brentq, minimize_scalar
 
 from femshell.coupled import (CoupledError, CoupledLoop, GrowthCoupling, InitialSpot, MechanochemicalModel,
-                              TimeStepping, feedback_gain, feedback_step_limit, gaussian_spot)
+                              TimeStepping, feedback_gain, feedback_step_limit, gaussian_spot,
+                              stable_extrapolation)
 from femshell.io import load_checkpoint, save_checkpoint
 from femshell.mesh.generators import sphere
 
@@ -566,6 +567,66 @@ def test_feedback_bound_damps_the_oscillation_of_a_stiff_negative_feedback(expon
     a = np.exp(-dts[-1]) + (1 - np.exp(-dts[-1])) * lam if exponential else (1 + lam * dts[-1]) / (1 + dts[-1])
     assert -1.0 < a < 0.0
     assert dts[-1] > 0.5 * feedback_step_limit(lam, 1.0, 0.5, exponential)   # not needlessly small
+
+
+@pytest.mark.parametrize("G, r, rho", [(0.5, 1.0, 0.5), (3.0, 0.5, 0.5), (20.0, 1.0, 0.5), (20.0, 1.5, 1.0),
+                                        (200.0, 1.0, 0.25)])
+def test_the_stable_extrapolation_puts_the_oscillating_root_at_minus_rho(G, r, rho):
+    """The closed-form fraction against the roots of
+    δ_{n+1} = (1-q)δ_n + q g ((1+θr/2)δ_n - (θr/2)δ_{n-1}) (β = 1, g = -G)."""
+    def oscillating_root(dt, theta):
+        q = 1 - math.exp(-dt)
+        return np.roots([1.0, -(1 - q - q * G * (1 + theta * r / 2)), -q * G * theta * r / 2]).real.min()
+
+    full = brentq(lambda dt: oscillating_root(dt, 1.0) + rho, 1e-9, 50.0)     # θ = 1 up to this dt
+    assert stable_extrapolation(-G, 1.0, rho, 0.999 * full, 0.999 * full / r) == 1.0
+    held = feedback_step_limit(-G, 1.0, rho, exponential=True)                # θ = 0 from here on
+    for dt in np.linspace(full, min(held, 5 * full), 6)[1:-1]:
+        theta = stable_extrapolation(-G, 1.0, rho, dt, dt / r)
+        assert 0 < theta < 1 and oscillating_root(dt, theta) == pytest.approx(-rho, abs=1e-9)
+    if math.isfinite(held):                      # inf where G < rho: a held source is never limited
+        assert stable_extrapolation(-G, 1.0, rho, 1.001 * held, held / r) == 0.0
+    assert stable_extrapolation(5.0, 1.0, rho, 10.0, 1.0) == stable_extrapolation(math.nan, 1.0, rho, 10.0, 1.0) == 1
+
+
+def test_extrapolated_source_is_closer_to_the_converged_run_than_the_held_one():
+    """A growing spot (D = 0: the chemistry exact for a given source), the same ds_max with both
+    rules, against the extrapolated rule at a quarter of it: the held source is first order in dt
+    (its error halves with ds_max), the extrapolated one is several times closer."""
+    ball = sphere(R, n_vertices=400, seed=0)
+    p = MechanochemicalModel(**{**SPOT, "D": 0.0})
+
+    def run(rule, ds_max):
+        st = TimeStepping(t_final=1.0, dt_initial=0.05, ramp_ds=0.2, ds_max=ds_max, source_rule=rule)
+        loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+        extrapolated = sum(loop._extrapolate == 1.0 for _ in loop.iterate())
+        return loop.c.copy(), extrapolated, loop.step
+
+    reference, n_ex, n = run("extrapolated", 0.00625)
+    assert n_ex >= n - 1 > 60                   # every step after the first extrapolates
+    err = {}
+    for rule in ("start", "extrapolated"):
+        for ds in (0.05, 0.025):
+            err[rule, ds] = np.abs(run(rule, ds)[0] - reference).max() / p.c_max
+    assert 0.35 < err["start", 0.025] / err["start", 0.05] < 0.65     # first order
+    assert err["extrapolated", 0.025] < 0.3 * err["start", 0.025]
+    assert err["extrapolated", 0.05] < 0.5 * err["start", 0.05]
+
+
+def test_resume_with_the_extrapolated_source_is_bitwise_identical(ball, tmp_path):
+    """The previous state's source is rebuilt from u_prev, and whether to extrapolate is stored."""
+    p = MechanochemicalModel(**SPOT)
+    st = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, source_rule="extrapolated")
+    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+    for rec in loop.iterate(max_steps=3):
+        if rec.step == 2:
+            save_checkpoint(tmp_path / "ck.npz", loop.state_dict(), {})
+            assert loop._extrapolate > 0         # the step tested below extrapolates
+    state, _ = load_checkpoint(tmp_path / "ck.npz")
+    resumed = CoupledLoop.from_state_dict(ball, p, state, st)
+    resumed.advance()
+    assert resumed.t == loop.t and resumed.dt == loop.dt
+    assert np.array_equal(resumed.c, loop.c) and np.array_equal(resumed.u, loop.u)
 
 
 def test_spot_and_feedback_helpers_refuse_what_they_cannot_use():

@@ -458,3 +458,16 @@ def test_membrane_law_reaches_the_shell(tmp_path):
     assert params.material.law == "neo-hookean"
     params, _, _ = coupled_parameters(load_scene(write(tmp_path, SPHERE)))
     assert params.material.law == "svk"                      # design.md 1.2 by default
+
+
+def test_a_time_scene_passes_its_source_rule_to_the_loop():
+    from femshell.coupled import SOURCE_RULES
+    from femshell.scene.build import coupled_parameters
+    from femshell.scene.schema import SOLVER_KEYS
+
+    assert SOLVER_KEYS["time"]["source_rule"].choices == SOURCE_RULES     # the schema offers what the loop knows
+    assert coupled_parameters(load_scene("default"))[1].source_rule == "start"
+    scene = load_scene("default", ["solver.source_rule=extrapolated"])
+    assert coupled_parameters(scene)[1].source_rule == "extrapolated"
+    with pytest.raises(SceneError, match='source_rule = "midpoint" is not one of "start", "extrapolated"'):
+        load_scene("default", ["solver.source_rule=midpoint"])

@@ -350,7 +350,7 @@ def coupled_parameters(scene: Scene):
                              "stationary_rate_c", "stationary_rate_x", "stationary_steps", "stationary_pattern_time",
                              "stationary_pattern_tol", "newton_atol_strain",
                              "ramp_ds", "snap_ds", "snap_max_iter", "quasi_newton", "newton_stall",
-                             "feedback_amplification", "max_steps")}
+                             "feedback_amplification", "source_rule", "max_steps")}
     if so.get("newton_rtol") is not None:
         kw["newton_rtol"] = so["newton_rtol"]
     if so.get("newton_max_iter") is not None:
@@ -515,7 +515,10 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
         pattern_stop = (f" or pattern unchanged for {so['stationary_pattern_time']:g}"
                         if so["stationary_pattern_time"] else "")
         lines.append(f"  solver     mechanochemical time loop: t_final={so['t_final']:g}, dt in [{so['dt_min']:g}, "
-                     f"{so['dt_max']:g}], ds_max={so['ds_max']:g}, stationary below rates "
+                     f"{so['dt_max']:g}], ds_max={so['ds_max']:g}"
+                     + (", source extrapolated to each step's midpoint where stable"
+                        if so["source_rule"] == "extrapolated" else "")
+                     + ", stationary below rates "
                      f"{so['stationary_rate_c']:g}/{so['stationary_rate_x']:g} for {so['stationary_steps']} steps"
                      f"{pattern_stop}; Newton to stable equilibria")
     elif kind == "static":

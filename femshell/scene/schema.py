@@ -298,6 +298,9 @@ SOLVER_KEYS = {
                                     "step is cut (0: never)", lo=0),
         "feedback_amplification": Spec(F, 0.5, "dt keeps an oscillation of the staggered chemistry-mechanics step "
                                                "damped: amplification >= -this (0: no bound)", lo=0.0, hi=1.0),
+        "source_rule": Spec(S, "start", "source the chemistry holds over a step: its start's, or extrapolated to "
+                                        "its midpoint from the last two steps where stable (second order)",
+                            choices=("start", "extrapolated")),
         "max_steps": Spec(I, None, "stop after this many steps of one invocation (continue with --resume)", lo=0),
         **NEWTON,
     },
