@@ -122,7 +122,7 @@ os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 __all__ = ["MechanochemicalModel", "GrowthCoupling", "InitialSpot", "gaussian_spot", "TimeStepping",
            "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "REST_CURVATURES", "feedback_gain",
-           "feedback_step_limit"]
+           "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES"]
 
 REST_CURVATURES = ("mesh", "k0")
 STATE_VERSION = 1
@@ -491,25 +491,26 @@ def stable_extrapolation(g: float, beta: float, rho: float, dt: float, h_prev: f
 
     With the source P_n + θ (r/2)(P_n − P_{n−1}), r = dt/h_prev (θ = 1: Adams–Bashforth 2, see
     :class:`TimeStepping` ``source_rule``), a mode of gain g (as in :func:`feedback_step_limit`)
-    follows δ_{n+1} = (1 − q) δ_n + (q g/β)((1 + θr/2) δ_n − (θr/2) δ_{n−1}), q = 1 − e^{−β dt}.
-    Its roots ζ are real, one of each sign when g < 0; the negative one is ≥ −ρ iff the
-    characteristic polynomial is ≥ 0 at −ρ:
+    follows δ_{n+1} = e^{−β dt} δ_n + φ g ((1 + θr/2) δ_n − (θr/2) δ_{n−1}), φ = (1 − e^{−β dt})/β
+    (φ = dt for β = 0). Its roots ζ are real, one of each sign when g < 0; the negative one is
+    ≥ −ρ iff the characteristic polynomial is ≥ 0 at −ρ:
 
-        q (ρ + G (ρ + (1 + ρ) θr/2)) ≤ ρ (1 + ρ),   G = −g/β.
+        ρ q + k (ρ + (1 + ρ) θr/2) ≤ ρ (1 + ρ),   q = 1 − e^{−β dt},  k = −g φ.
 
-    At θ = 0 this is the held source's bound q (1 + G) ≤ 1 + ρ, so θ falls from 1 to 0 as dt
-    approaches that bound; full extrapolation (θ = 1, r = 1) needs dt ≲ 0.4 of it where the
-    feedback is strong (G ≫ 1, ρ = 0.5). A positive or unknown (nan) g never limits: θ = 1.
+    At θ = 0 this is the held source's bound, a ≥ −ρ, so θ falls from 1 to 0 as dt approaches
+    that bound; full extrapolation (θ = 1, r = 1) needs dt ≲ 0.4 of it where the feedback is
+    strong (−g/β ≫ 1, ρ = 0.5). A positive or unknown (nan) g never limits: θ = 1.
 
     >>> from femshell.coupled import stable_extrapolation
     >>> [round(stable_extrapolation(-20.0, 1.0, 0.5, dt, 0.03), 3) for dt in (0.02, 0.03, 0.05, 0.08)]
     [1.0, 0.992, 0.195, 0.0]
     """
-    if not (math.isfinite(g) and g < 0 and beta > 0):
+    if not (math.isfinite(g) and g < 0):
         return 1.0
     q = -math.expm1(-beta * dt)
-    G, r = -g / beta, dt / h_prev
-    theta = (rho * (1.0 + rho) / q - rho - G * rho) / (G * (1.0 + rho) * 0.5 * r)
+    k = -g * (q / beta if beta > 0 else dt)
+    r = dt / h_prev
+    theta = (rho * (1.0 + rho) - rho * q - k * rho) / (k * (1.0 + rho) * 0.5 * r)
     return float(min(1.0, max(0.0, theta)))
 
 
@@ -1362,6 +1363,7 @@ class CoupledLoop:
         self._u_prev = u_prev if u_prev.shape == u.shape else None
         self._h_prev = float(state.get("h_prev", 0.0)) if self._u_prev is not None else 0.0
         self._source_prev = None
+        # θ as chosen for the stored dt (a dt clamped to a smaller dt_max only makes it more stable)
         self._extrapolate = (float(state.get("extrapolate", 0.0))
                              if self.stepping.source_rule == "extrapolated" else 0.0)
         if self._extrapolate > 0 and self._u_prev is not None:

@@ -569,24 +569,26 @@ def test_feedback_bound_damps_the_oscillation_of_a_stiff_negative_feedback(expon
     assert dts[-1] > 0.5 * feedback_step_limit(lam, 1.0, 0.5, exponential)   # not needlessly small
 
 
-@pytest.mark.parametrize("G, r, rho", [(0.5, 1.0, 0.5), (3.0, 0.5, 0.5), (20.0, 1.0, 0.5), (20.0, 1.5, 1.0),
-                                        (200.0, 1.0, 0.25)])
-def test_the_stable_extrapolation_puts_the_oscillating_root_at_minus_rho(G, r, rho):
-    """The closed-form fraction against the roots of
-    δ_{n+1} = (1-q)δ_n + q g ((1+θr/2)δ_n - (θr/2)δ_{n-1}) (β = 1, g = -G)."""
+@pytest.mark.parametrize("g, beta, r, rho", [(-0.5, 1.0, 1.0, 0.5), (-3.0, 1.0, 0.5, 0.5), (-20.0, 1.0, 1.0, 0.5),
+                                              (-20.0, 1.0, 1.5, 1.0), (-200.0, 1.0, 1.0, 0.25), (-6.0, 0.3, 1.0, 0.5),
+                                              (-20.0, 0.0, 1.0, 0.5), (-40.0, 4.0, 0.7, 0.5)])
+def test_the_stable_extrapolation_puts_the_oscillating_root_at_minus_rho(g, beta, r, rho):
+    """The closed-form fraction against the roots of the step's recursion with the degradation
+    integrated exactly: δ_{n+1} = e^{-β dt} δ_n + φ g ((1+θr/2)δ_n - (θr/2)δ_{n-1}), φ = (1 - e^{-β dt})/β."""
     def oscillating_root(dt, theta):
-        q = 1 - math.exp(-dt)
-        return np.roots([1.0, -(1 - q - q * G * (1 + theta * r / 2)), -q * G * theta * r / 2]).real.min()
+        phi = -math.expm1(-beta * dt) / beta if beta > 0 else dt
+        b = math.exp(-beta * dt) + phi * g * (1 + theta * r / 2)
+        return np.roots([1.0, -b, phi * g * theta * r / 2]).real.min()
 
     full = brentq(lambda dt: oscillating_root(dt, 1.0) + rho, 1e-9, 50.0)     # θ = 1 up to this dt
-    assert stable_extrapolation(-G, 1.0, rho, 0.999 * full, 0.999 * full / r) == 1.0
-    held = feedback_step_limit(-G, 1.0, rho, exponential=True)                # θ = 0 from here on
+    assert stable_extrapolation(g, beta, rho, 0.999 * full, 0.999 * full / r) == 1.0
+    held = feedback_step_limit(g, beta, rho, exponential=True)                # θ = 0 from here on
     for dt in np.linspace(full, min(held, 5 * full), 6)[1:-1]:
-        theta = stable_extrapolation(-G, 1.0, rho, dt, dt / r)
+        theta = stable_extrapolation(g, beta, rho, dt, dt / r)
         assert 0 < theta < 1 and oscillating_root(dt, theta) == pytest.approx(-rho, abs=1e-9)
-    if math.isfinite(held):                      # inf where G < rho: a held source is never limited
-        assert stable_extrapolation(-G, 1.0, rho, 1.001 * held, held / r) == 0.0
-    assert stable_extrapolation(5.0, 1.0, rho, 10.0, 1.0) == stable_extrapolation(math.nan, 1.0, rho, 10.0, 1.0) == 1
+    if math.isfinite(held):                      # inf where -g < rho beta: a held source is never limited
+        assert stable_extrapolation(g, beta, rho, 1.001 * held, held / r) == 0.0
+    assert stable_extrapolation(5.0, beta, rho, 10.0, 1.0) == stable_extrapolation(math.nan, beta, rho, 10.0, 1.0) == 1
 
 
 def test_extrapolated_source_is_closer_to_the_converged_run_than_the_held_one():
@@ -627,6 +629,32 @@ def test_resume_with_the_extrapolated_source_is_bitwise_identical(ball, tmp_path
     resumed.advance()
     assert resumed.t == loop.t and resumed.dt == loop.dt
     assert np.array_equal(resumed.c, loop.c) and np.array_equal(resumed.u, loop.u)
+
+
+def test_the_extrapolated_source_reaches_the_fixed_point_of_a_stiff_negative_feedback():
+    """The damping test's ring (gain -20) with the source extrapolated by the stable fraction θ at
+    the held source's steps: the iteration still converges, and θ < 1 where the bound is near."""
+    rng = np.random.default_rng(3)
+    n = 40
+    G = np.diag(np.full(n, -0.3))
+    ring = np.arange(6)
+    G[np.ix_(ring, ring)] += 0.5 * np.eye(6, k=1) + 0.5 * np.eye(6, k=-1)
+    G[ring, ring] = -20.0
+    P0 = rng.uniform(0.5, 1.0, n)
+    fixed = np.linalg.solve(np.eye(n) - G, P0)
+    c = fixed + 0.01 * rng.standard_normal(n)
+    dt, h_prev, P_prev, theta, thetas = 0.05, None, None, 0.0, []
+    for _ in range(300):
+        P = P0 + G @ c
+        held = P if P_prev is None else P + theta * 0.5 * dt / h_prev * (P - P_prev)
+        c_new = held + (c - held) * np.exp(-dt)
+        g = feedback_gain(c_new - c, G @ (c_new - c))
+        P_prev, h_prev, c = P, dt, c_new
+        dt = min(1.5 * dt, 1.0, feedback_step_limit(g, 1.0, 0.5, exponential=True))
+        theta = stable_extrapolation(g, 1.0, 0.5, dt, h_prev)
+        thetas.append(theta)
+    assert np.max(np.abs(c - fixed)) < 1e-8
+    assert min(thetas) < 0.5 and max(thetas) == 1.0
 
 
 def test_spot_and_feedback_helpers_refuse_what_they_cannot_use():
