@@ -533,12 +533,9 @@ def _staggered(G, P0, c, dt, exponential):
     return (c + dt * P) / (1 + dt)
 
 
-@pytest.mark.parametrize("exponential", [True, False])
-def test_feedback_bound_damps_the_oscillation_of_a_stiff_negative_feedback(exponential):
-    # A linear source with a strongly self-limiting ring (gain -20, coupled to its neighbours)
-    # and a slow rest: the fixed point c = (I - G)^-1 P0 is stable for the ODE, but the
-    # staggered step at dt = 1 amplifies the ring's mode (a = 1 - q (1 - g) < -1). With dt
-    # chosen by feedback_gain / feedback_step_limit the iteration reaches the fixed point.
+def _stiff_ring():
+    """A linear source P0 + G c with a strongly self-limiting ring (gain -20, coupled to its
+    neighbours) and a slow rest; its fixed point (I - G)^-1 P0 and a start near it."""
     rng = np.random.default_rng(3)
     n = 40
     G = np.diag(np.full(n, -0.3))
@@ -547,7 +544,16 @@ def test_feedback_bound_damps_the_oscillation_of_a_stiff_negative_feedback(expon
     G[ring, ring] = -20.0
     P0 = rng.uniform(0.5, 1.0, n)
     fixed = np.linalg.solve(np.eye(n) - G, P0)
-    c0 = fixed + 0.01 * rng.standard_normal(n)
+    return G, P0, fixed, fixed + 0.01 * rng.standard_normal(n)
+
+
+@pytest.mark.parametrize("exponential", [True, False])
+def test_feedback_bound_damps_the_oscillation_of_a_stiff_negative_feedback(exponential):
+    # A linear source with a strongly self-limiting ring (gain -20, coupled to its neighbours)
+    # and a slow rest: the fixed point c = (I - G)^-1 P0 is stable for the ODE, but the
+    # staggered step at dt = 1 amplifies the ring's mode (a = 1 - q (1 - g) < -1). With dt
+    # chosen by feedback_gain / feedback_step_limit the iteration reaches the fixed point.
+    G, P0, fixed, c0 = _stiff_ring()
 
     c = c0.copy()
     for _ in range(60):
@@ -634,15 +640,7 @@ def test_resume_with_the_extrapolated_source_is_bitwise_identical(ball, tmp_path
 def test_the_extrapolated_source_reaches_the_fixed_point_of_a_stiff_negative_feedback():
     """The damping test's ring (gain -20) with the source extrapolated by the stable fraction θ at
     the held source's steps: the iteration still converges, and θ < 1 where the bound is near."""
-    rng = np.random.default_rng(3)
-    n = 40
-    G = np.diag(np.full(n, -0.3))
-    ring = np.arange(6)
-    G[np.ix_(ring, ring)] += 0.5 * np.eye(6, k=1) + 0.5 * np.eye(6, k=-1)
-    G[ring, ring] = -20.0
-    P0 = rng.uniform(0.5, 1.0, n)
-    fixed = np.linalg.solve(np.eye(n) - G, P0)
-    c = fixed + 0.01 * rng.standard_normal(n)
+    G, P0, fixed, c = _stiff_ring()
     dt, h_prev, P_prev, theta, thetas = 0.05, None, None, 0.0, []
     for _ in range(300):
         P = P0 + G @ c
