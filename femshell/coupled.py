@@ -1103,9 +1103,9 @@ class CoupledLoop:
         """The source the chemistry holds over a step of length h from the current state.
 
         ``source_rule = "extrapolated"``: P at the step's midpoint extrapolated from the last two
-        accepted states (Adams–Bashforth 2), P_n + (h / 2h_prev)(P_n − P_{n−1}), kept within
-        P's range [0, w Hs], by the fraction of the extrapolation that is stable
-        (:func:`stable_extrapolation`, decided with the next dt). Otherwise, and where there is no
+        accepted states (Adams–Bashforth 2), P_n + θ (h / 2h_prev)(P_n − P_{n−1}) with θ the
+        fraction of the extrapolation that is stable (:func:`stable_extrapolation`, decided with
+        the next dt), kept within P's range [0, w Hs]. Otherwise, and where there is no
         previous state (the first step, after a snap), P_n itself.
         """
         if not (self._extrapolate > 0 and self._source_prev is not None and self._h_prev > 0):
@@ -1297,9 +1297,9 @@ class CoupledLoop:
         last_newton_iterations, last_ds, n_vertices, n_free, held_cholesky (whether the last
         state's Hessian is held as a Cholesky factor for the quasi-Newton start of the next step:
         a resumed loop factorises it again, so that it continues exactly as the uninterrupted
-        one), pattern_anchor_t,
-        pattern_anchor_c and pattern_anchor_points (when and with which c and shape the pattern
-        last changed, for ``stationary_pattern_time``; left out when it is not followed).
+        one), pattern_anchor_t, pattern_anchor_c and pattern_anchor_points (when and with which c
+        and shape the pattern last changed, for ``stationary_pattern_time``; left out when it is
+        not followed).
         Store with :func:`femshell.io.save_checkpoint`; parameters go in its meta.
         """
         return {"version": STATE_VERSION, "t": float(self.t), "dt": float(self.dt), "step": int(self.step),

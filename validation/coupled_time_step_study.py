@@ -11,11 +11,11 @@ spot radius of the paper's formula. Their decrease with ds_max is the loop's obs
 the wall time gives the cost of each accuracy (a run's set-up included, and in the first run of a
 process also the element kernels' compilation, ~5 s: small against runs of 1-40 min).
 
-``--source-rule start extrapolated`` runs the series with both of the chemistry's source rules
-(``TimeStepping.source_rule``; the first rule's smallest ds_max is the reference), and
-``--richardson`` compares with the first-order Richardson extrapolation from the first rule's two
-smallest ds_max instead (committed: `spots` to t = 2 and `uniform-thickness` to t = 12, 1500
-vertices, in docs/accuracy-and-cost.md).
+``--source-rule extrapolated start`` runs the series with both of the chemistry's source rules
+(``TimeStepping.source_rule``; the first rule's smallest ds_max is the reference; committed for
+`spots` to t = 2 and `uniform-thickness` to t = 12 on 1500 vertices, in docs/accuracy-and-cost.md).
+``--richardson`` (start first) compares instead with the first-order Richardson extrapolation
+from the held source's two smallest ds_max, a cross-check of that reference.
 
 Each finished run's end state is saved in ``--states`` (an .npz per ds_max); running the command
 again reuses them, and a run stopped midway resumes from its checkpoint there. Results go to a JSON (``--json``) and, with
