@@ -62,7 +62,8 @@ from ._checks import finite, finite_vector, integer, triangle_array, vertex_indi
 from .geometry import triangle_areas
 
 __all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeasures", "find_spots",
-           "count_spots", "same_pattern", "polar_profile", "PolarProfile", "azimuthal_spectrum", "count_wrinkles"]
+           "count_spots", "same_pattern", "polar_profile", "PolarProfile", "azimuthal_spectrum", "azimuthal_power",
+           "count_wrinkles"]
 
 
 def _mesh(points, triangles):
@@ -585,6 +586,25 @@ def azimuthal_spectrum(points, values, radius: float, *, center=(0.0, 0.0), n_sa
     w(φ) = ŵ_0 + Σ_k ŵ_k cos(k φ − φ_k). Raises ValueError when the circle leaves the mesh.
     """
     return _spectrum(_circle_samples(points, values, radius, center, n_samples, triangles))
+
+
+def azimuthal_power(points, values, radii, *, triangles=None, skip_outside: bool = False):
+    """|ŵ_k|² (k = 0 .. 256) summed over the circles of the given ``radii`` about the origin.
+
+    One circle can pass where a mode's part of some wavenumber vanishes; the sum over several
+    does not. See :func:`azimuthal_spectrum` (512 samples per circle). A circle that leaves
+    the mesh raises ValueError, or with ``skip_outside`` is left out; None if none is left.
+    """
+    power = None
+    for r in radii:
+        try:
+            amp = azimuthal_spectrum(points, values, r, triangles=triangles)
+        except ValueError:
+            if not skip_outside:
+                raise
+            continue
+        power = amp ** 2 if power is None else power + amp ** 2
+    return power
 
 
 def count_wrinkles(points, values, radius: float, *, center=(0.0, 0.0), n_samples: int = 512,

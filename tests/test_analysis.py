@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from femshell.analysis import (azimuthal_spectrum, count_spots, count_wrinkles, find_spots, polar_profile,
-                               spot_radius, spot_spacing, vertex_areas)
+from femshell.analysis import (azimuthal_power, azimuthal_spectrum, count_spots, count_wrinkles, find_spots,
+                               polar_profile, spot_radius, spot_spacing, vertex_areas)
 from femshell.mesh.generators import disk, plate, sphere
 
 R = 10.0
@@ -157,6 +157,12 @@ def test_count_wrinkles_on_a_disk():
     assert amp[3] == pytest.approx(1.0, rel=0.02) and amp[0] < 1e-3
     with pytest.raises(ValueError, match="leaves the mesh"):
         count_wrinkles(m.points, r, 6.0, triangles=m.triangles)
+    # summed over circles: r cos 3φ has |ŵ_3|² = r² on each
+    power = azimuthal_power(m.points, r * np.cos(3 * phi), [2.0, 3.0, 6.0], triangles=m.triangles, skip_outside=True)
+    assert int(np.argmax(power)) == 3 and power[3] == pytest.approx(2.0**2 + 3.0**2, rel=0.03)
+    assert azimuthal_power(m.points, r, [6.0], triangles=m.triangles, skip_outside=True) is None
+    with pytest.raises(ValueError, match="leaves the mesh"):
+        azimuthal_power(m.points, r, [2.0, 6.0], triangles=m.triangles)
     ball = sphere(radius=5.0, n_vertices=200)     # a curved mesh is not projected onto the xy plane
     with pytest.raises(ValueError, match="flat mesh in the xy plane .* got z from -5"):
         count_wrinkles(ball.points, ball.points[:, 2], 4.0, triangles=ball.triangles)

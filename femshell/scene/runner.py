@@ -1355,18 +1355,14 @@ class ContinuationRunner(BaseRunner):
         if not sp.located:
             info["bracket"] = list(sp.bracket)
         if self.flat and self.r2 is not None and sp.modes.shape[1]:
-            from ..analysis import azimuthal_spectrum
+            from ..analysis import azimuthal_power
             # the dominant azimuthal wavenumber of the critical mode, 0 for a dome (counting wrinkles from k = 1 up
             # called a dome with a trace of tilt "1 wave"), from the power on four circles about R2 as the
-            # disk-wrinkles validation case finds it: one circle can pass where the mode's axisymmetric part is 0
+            # disk-wrinkles validation case finds it; a circle outside a non-circular flat mesh is skipped
             z = self.deflection(model.mode_displacements(sp.modes[:, 0])[:, 2])
-            power = 0.0
-            for r in (f * self.r2 for f in (0.5, 0.85, 1.15, 1.5) if f * self.r2 < 0.98 * self.r_mesh):
-                try:                                    # a circle outside a non-circular flat mesh is skipped
-                    power = power + azimuthal_spectrum(self.mesh.points, z, r, triangles=self.mesh.triangles) ** 2
-                except ValueError:
-                    pass
-            if np.ndim(power):
+            radii = [f * self.r2 for f in (0.5, 0.85, 1.15, 1.5) if f * self.r2 < 0.98 * self.r_mesh]
+            power = azimuthal_power(self.mesh.points, z, radii, triangles=self.mesh.triangles, skip_outside=True)
+            if power is not None:
                 info["mode_n"] = int(np.argmax(power))
         self.specials.append(info)
         if not sp.located:

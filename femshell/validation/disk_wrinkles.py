@@ -92,7 +92,7 @@ import time
 
 import numpy as np
 
-from ..analysis import azimuthal_spectrum, count_wrinkles
+from ..analysis import azimuthal_power, azimuthal_spectrum, count_wrinkles
 from ..linear_buckling import _disk_mesh
 from ..mesh.surface import SurfaceMesh
 from ..shell import Material, RestState, ShellModel
@@ -232,8 +232,7 @@ class Disk:
 
     def azimuthal_power(self, z, radii, k_max=24):
         """|ẑ_k|², k = 0..k_max, summed over the material circles r = radii · R2."""
-        return sum(azimuthal_spectrum(self.points, z, f * self.R2, triangles=self.triangles)[: k_max + 1] ** 2
-                   for f in radii)
+        return azimuthal_power(self.points, z, [f * self.R2 for f in radii], triangles=self.triangles)[: k_max + 1]
 
     def mode_wavenumber(self, modes):
         """Dominant azimuthal wavenumber of the out-of-plane part of critical mode(s) (best-fit plane
