@@ -83,6 +83,7 @@ from __future__ import annotations
 
 import os
 import threading
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -235,7 +236,7 @@ def _cpu_quota():
     """Whole CPUs a container's CPU limit allows (``docker --cpus=2`` on a larger host: 2), None without one."""
     for files in CGROUP_CPU_FILES:
         try:
-            fields = " ".join(open(f).read().strip() for f in files).split()
+            fields = " ".join(Path(f).read_text().strip() for f in files).split()
         except (OSError, ValueError):
             continue
         try:
