@@ -166,6 +166,21 @@ def test_resume_after_max_steps_is_bitwise_identical(uninterrupted, tmp_path):
     assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
 
 
+def test_resume_can_cap_the_time_step(uninterrupted, tmp_path):
+    out = tmp_path / "run"
+    assert run("default", out, extra=["--max-steps", "2"], overrides=RESUME) == 0
+    cap = ["solver.dt_max=0.004", "solver.dt_initial=0.001"]     # dt_initial may not exceed dt_max
+    assert run("default", out, extra=["--resume"], overrides=RESUME + cap) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "t_final" and s["final"]["t"] == pytest.approx(0.12)
+    steps = [t for t, _ in read_pvd(out / "series.pvd")]
+    assert max(np.diff(steps[2:])) <= 0.004 * (1 + 1e-12)      # every step after the resume within the cap
+    assert s["steps"] > load_checkpoint(uninterrupted / "checkpoint.npz")[1]["step"]
+    assert "dt_max = 0.004" in (out / "scene.toml").read_text()
+    # another solver key is still refused
+    assert run("default", out, extra=["--resume"], overrides=RESUME + ["solver.ds_max=0.01"]) == 2
+
+
 def test_ctrl_c_checkpoints_and_resumes(uninterrupted, tmp_path, monkeypatch):
     from femshell.coupled import CoupledLoop
 

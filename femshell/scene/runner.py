@@ -31,9 +31,12 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
 * ``--resume`` continues from the checkpoint; frames written after it are dropped and
   written again. The scene must be the one in ``DIR/scene.toml`` except for
   ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop``,
-  ``solver.switch_stop``, ``solver.stationary_pattern_time`` and
-  ``solver.stationary_pattern_tol`` (so a finished run can be extended). For the time loop and the
-  static solver the resumed run is bit for bit the uninterrupted one; a continuation
+  ``solver.switch_stop``, ``solver.stationary_pattern_time``,
+  ``solver.stationary_pattern_tol`` (so a finished run can be extended) and ``solver.dt_max`` (a
+  cap on the time step from then on: docs/accuracy-and-cost.md, "What bounds a run that covers
+  the sphere"; with ``solver.dt_initial``, which a resumed run does not use, since it must not
+  exceed dt_max). With the run's own scene the time loop and the
+  static solver resume bit for bit as the uninterrupted run; a continuation
   restarts its branch from the last accepted point along the secant (same branch, not the
   same steps).
   The mesh file may move (its content is checked by a fingerprint instead of its path).
@@ -83,7 +86,8 @@ RUN_DIR_FILES = re.compile(r"(top|side|bifurcation)(_\d{6}|_last)?\.png|(primary
 FRAME = re.compile(rf"{SERIES}_\d{{6}}\.vtu")
 #: keys that may change between a run and its --resume
 RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop"),
-                     ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol")}
+                     ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol"),
+                     ("solver", "dt_max"), ("solver", "dt_initial")}
 #: a fold between neighbouring faces beyond this (degrees) is reported as under-resolved
 FOLD_WARNING_DEG = 30.0
 FINAL = ("t_final", "stationary", "done", "lam_stop", "max_steps_branch", "fold", "branch", "callback")
