@@ -169,7 +169,8 @@ def test_resume_after_max_steps_is_bitwise_identical(uninterrupted, tmp_path):
 def test_resume_can_cap_the_time_step(uninterrupted, tmp_path):
     out = tmp_path / "run"
     assert run("default", out, extra=["--max-steps", "2"], overrides=RESUME) == 0
-    cap = ["solver.dt_max=0.004", "solver.dt_initial=0.001"]     # dt_initial may not exceed dt_max
+    # dt_initial may not exceed dt_max; the source rule may change too
+    cap = ["solver.dt_max=0.004", "solver.dt_initial=0.001", "solver.source_rule='extrapolated'"]
     assert run("default", out, extra=["--resume"], overrides=RESUME + cap) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "t_final" and s["final"]["t"] == pytest.approx(0.12)
@@ -177,6 +178,7 @@ def test_resume_can_cap_the_time_step(uninterrupted, tmp_path):
     assert max(np.diff(steps[2:])) <= 0.004 * (1 + 1e-12)      # every step after the resume within the cap
     assert s["steps"] > load_checkpoint(uninterrupted / "checkpoint.npz")[1]["step"]
     assert "dt_max = 0.004" in (out / "scene.toml").read_text()
+    assert 'source_rule = "extrapolated"' in (out / "scene.toml").read_text()
     # another solver key is still refused
     assert run("default", out, extra=["--resume"], overrides=RESUME + ["solver.ds_max=0.01"]) == 2
 

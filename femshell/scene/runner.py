@@ -32,10 +32,10 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
   written again. The scene must be the one in ``DIR/scene.toml`` except for
   ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop``,
   ``solver.switch_stop``, ``solver.stationary_pattern_time``,
-  ``solver.stationary_pattern_tol`` (so a finished run can be extended) and ``solver.dt_max`` (a
+  ``solver.stationary_pattern_tol`` (so a finished run can be extended), ``solver.dt_max`` (a
   cap on the time step from then on: docs/accuracy-and-cost.md, "What bounds a run that covers
   the sphere"; with ``solver.dt_initial``, which a resumed run does not use, since it must not
-  exceed dt_max). With the run's own scene the time loop and the
+  exceed dt_max) and ``solver.source_rule`` (the held source for a settling). With the run's own scene the time loop and the
   static solver resume bit for bit as the uninterrupted run; a continuation
   restarts its branch from the last accepted point along the secant (same branch, not the
   same steps).
@@ -87,7 +87,7 @@ FRAME = re.compile(rf"{SERIES}_\d{{6}}\.vtu")
 #: keys that may change between a run and its --resume
 RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop"),
                      ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol"),
-                     ("solver", "dt_max"), ("solver", "dt_initial")}
+                     ("solver", "dt_max"), ("solver", "dt_initial"), ("solver", "source_rule")}
 #: a fold between neighbouring faces beyond this (degrees) is reported as under-resolved
 FOLD_WARNING_DEG = 30.0
 FINAL = ("t_final", "stationary", "done", "lam_stop", "max_steps_branch", "fold", "branch", "callback")
