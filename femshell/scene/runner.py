@@ -32,10 +32,10 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
   written again. The scene must be the one in ``DIR/scene.toml`` except for
   ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop``,
   ``solver.switch_stop``, ``solver.stationary_pattern_time``,
-  ``solver.stationary_pattern_tol`` (so a finished run can be extended), ``solver.dt_max`` (a
-  cap on the time step from then on: docs/accuracy-and-cost.md, "What bounds a run that covers
-  the sphere"; with ``solver.dt_initial``, which a resumed run does not use, since it must not
-  exceed dt_max) and ``solver.source_rule`` (the held source for a settling). With the run's own scene the time loop and the
+  ``solver.stationary_pattern_tol`` (so a finished run can be extended), and the time step's
+  cap and source rule, ``solver.dt_max`` (with ``solver.dt_initial``, which a resumed run does not
+  use but which must not exceed dt_max) and ``solver.source_rule``: they change the path's steps,
+  not the model. With the run's own scene the time loop and the
   static solver resume bit for bit as the uninterrupted run; a continuation
   restarts its branch from the last accepted point along the secant (same branch, not the
   same steps).
