@@ -166,21 +166,28 @@ def test_resume_after_max_steps_is_bitwise_identical(uninterrupted, tmp_path):
     assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
 
 
-def test_resume_can_cap_the_time_step(uninterrupted, tmp_path):
+def test_resume_can_cap_the_time_step(uninterrupted, tmp_path, capsys):
     out = tmp_path / "run"
     assert run("default", out, extra=["--max-steps", "2"], overrides=RESUME) == 0
     # dt_initial may not exceed dt_max; the source rule may change too
     cap = ["solver.dt_max=0.004", "solver.dt_initial=0.001", "solver.source_rule='extrapolated'"]
-    assert run("default", out, extra=["--resume"], overrides=RESUME + cap) == 0
+    capsys.readouterr()
+    args = ["run", "default", "--out", str(out), "--resume", *sets(RESUME + cap), "--set", "output.pictures=false"]
+    assert main(args) == 0
+    said = capsys.readouterr().out
+    assert "changed since the run's last invocation: " in said and "solver.dt_max " in said
+    assert "-> 0.004" in said and "solver.source_rule 'start' -> 'extrapolated'" in said
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "t_final" and s["final"]["t"] == pytest.approx(0.12)
-    steps = [t for t, _ in read_pvd(out / "series.pvd")]
-    assert max(np.diff(steps[2:])) <= 0.004 * (1 + 1e-12)      # every step after the resume within the cap
+    times = [t for t, _ in read_pvd(out / "series.pvd")]
+    assert max(np.diff(times[2:])) <= 0.004 * (1 + 1e-12)      # every step after the resume within the cap
     assert s["steps"] > load_checkpoint(uninterrupted / "checkpoint.npz")[1]["step"]
-    assert "dt_max = 0.004" in (out / "scene.toml").read_text()
-    assert 'source_rule = "extrapolated"' in (out / "scene.toml").read_text()
-    # another solver key is still refused
+    assert load_checkpoint(out / "checkpoint.npz")[0]["extrapolate"] > 0      # the extrapolated source in use
+    scene = (out / "scene.toml").read_text()
+    assert "dt_max = 0.004" in scene and 'source_rule = "extrapolated"' in scene
+    # another solver key is still refused, by name
     assert run("default", out, extra=["--resume"], overrides=RESUME + ["solver.ds_max=0.01"]) == 2
+    assert "[solver] ds_max: " in capsys.readouterr().err
 
 
 def test_ctrl_c_checkpoints_and_resumes(uninterrupted, tmp_path, monkeypatch):

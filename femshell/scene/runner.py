@@ -35,8 +35,8 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
   ``solver.stationary_pattern_tol`` (so a finished run can be extended), and the time step's
   cap and source rule, ``solver.dt_max`` (with ``solver.dt_initial``, which a resumed run does not
   use but which must not exceed dt_max) and ``solver.source_rule``: they change the path's steps,
-  not the model. With the run's own scene the time loop and the
-  static solver resume bit for bit as the uninterrupted run; a continuation
+  not the model. The resume says which of these keys changed. With the run's own scene the
+  time loop and the static solver resume bit for bit as the uninterrupted run; a continuation
   restarts its branch from the last accepted point along the secant (same branch, not the
   same steps).
   The mesh file may move (its content is checked by a fingerprint instead of its path).
@@ -1462,13 +1462,13 @@ RUNNERS = {"time": TimeRunner, "static": StaticRunner, "continuation": Continuat
 
 # ----------------------------------------------------------------------------- entry point
 
-def _differences_from(text, label, sc, base_dir) -> list:
+def _differences_from(text, label, sc, base_dir) -> tuple[list, list]:
     """:func:`_scene_differences` of the scene TOML ``text`` (None: none) against ``sc``.
 
     A stored scene that no longer validates cannot be compared: refused, rather than taken as equal.
     """
     if not text:
-        return []
+        return [], []
     try:
         old = validate(parse_scene(text, str(label)), name=sc.name, label=str(label), base_dir=base_dir,
                        check_files=False).data
@@ -1479,21 +1479,25 @@ def _differences_from(text, label, sc, base_dir) -> list:
     return _scene_differences(old, sc.data)
 
 
-def _scene_differences(old: dict, new: dict) -> list:
-    diffs = []
+def _scene_differences(old: dict, new: dict) -> tuple[list, list]:
+    """(differences that forbid a resume, changes of RESUMABLE_CHANGES keys as "solver.key old -> new")."""
+    diffs, changes = [], []
     for sec in sorted(set(old) | set(new)):
         if sec in ("description", "name", "output"):
             continue
         a, b = old.get(sec), new.get(sec)
         if isinstance(a, dict) and isinstance(b, dict):
             for k in sorted(set(a) | set(b)):
-                if (sec, k) in RESUMABLE_CHANGES or (sec, k) == ("mesh", "file"):
+                if (sec, k) == ("mesh", "file"):
                     continue                # a mesh file may move: the checkpoint's fingerprint checks its content
-                if a.get(k) != b.get(k):
+                if (sec, k) in RESUMABLE_CHANGES:
+                    if a.get(k) != b.get(k):
+                        changes.append(f"{sec}.{k} {a.get(k)!r} -> {b.get(k)!r}")
+                elif a.get(k) != b.get(k):
                     diffs.append(f"[{sec}] {k}: {a.get(k)!r} in the run, {b.get(k)!r} now")
         elif a != b:
             diffs.append(f"[{sec}] differs")
-    return diffs
+    return diffs, changes
 
 
 def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=False, overrides=(), max_steps=None,
@@ -1535,7 +1539,7 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
     if (rd.path / REPLACED).is_dir():
         with rd.lock():                     # (a live run there is refused by the lock)
             print(rd.recover(), file=sys.stderr if quiet else stream)
-    resume_from = None
+    resume_from, changes = None, []
     if rd.has_run() and not resume and not overwrite:
         raise RunDirError(f"{rd.path} already holds {rd.describe()}; use --resume to continue it, --overwrite to "
                           "replace it (femshell's files there are replaced), or choose another --out")
@@ -1564,7 +1568,8 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         old_p = rd.path / SCENE_FILE
         for label, text in ((ck, resume_from[1].get("scene_toml")),
                             (old_p, old_p.read_text(encoding="utf-8") if old_p.is_file() else None)):
-            diffs = _differences_from(text, label, sc, rd.path)
+            diffs, new_settings = _differences_from(text, label, sc, rd.path)
+            changes = changes or new_settings       # against the checkpoint's scene: the last invocation's
             if len(diffs) > 8:              # another scene altogether: the first keys say enough
                 diffs = diffs[:8] + [f"... and {len(diffs) - 8} more"]
             if diffs:
@@ -1609,10 +1614,10 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
     progress = Progress(stream, interval=sc["output"]["progress_interval"], quiet=quiet)
     # SIGTERM as Ctrl-C from here on: a run stopped while it starts still puts an earlier run back
     with interruptible():
-        return _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose)
+        return _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose, changes)
 
 
-def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose):
+def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose, changes=()):
     quiet = progress.quiet
     with rd.lock():
         if overwrite:
@@ -1625,6 +1630,8 @@ def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_step
                 progress.say(f"  out        {rd.path}/")
             elif resume and not quiet:
                 progress.say(f"scene '{sc.name}': resuming the run in {rd.path}/")
+            if resume_from is not None and changes:
+                progress.say("  changed since the run's last invocation: " + ", ".join(changes))
             runner = RUNNERS[sc.kind](sc, mesh, rd, progress=progress, max_steps=max_steps, verbose=verbose)
             return runner.run(resume_from)
         except StepFailure as exc:          # the initial state could not be made: nothing to checkpoint

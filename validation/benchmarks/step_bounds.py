@@ -18,7 +18,8 @@ nothing in DIR is written) under that run's own scene and any ``--set``, e.g. an
 reached (scene.toml, checkpoint.npz) for a later ``--resume DIR`` of this script. A step that
 ``solver.dt_max`` caps below both limits is counted as "dt_max". The last line counts the steps whose Newton solve
 needed 2 or more iterations past the quasi-Newton start (where the shape rearranges locally; they
-cost several quiet steps each) and gives the wall time per unit of model time.
+cost several quiet steps each) and gives the wall time per unit of model time (the first step's
+compilation included: a few seconds).
 
     MKL_NUM_THREADS=1 .venv/bin/python validation/benchmarks/step_bounds.py [--steps 400] \\
         [--n-vertices 2700] [--radius 15] [--set chemistry.w=120 ...] [--resume DIR] [--save DIR]
@@ -31,7 +32,7 @@ import time
 from pathlib import Path
 
 from femshell.coupled import feedback_step_limit
-from femshell.io import atomic_write_text, load_checkpoint, save_checkpoint
+from femshell.io import CheckpointError, atomic_write_text, load_checkpoint, save_checkpoint
 from femshell.scene.build import load_scene, make_mesh, time_loop
 from femshell.scene.schema import dump_toml
 
@@ -51,14 +52,22 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.steps < 1 or args.n_vertices < 100 or args.radius <= 0:
         ap.error("--steps >= 1, --n-vertices >= 100 and --radius > 0")
+    if args.save and (Path(args.save) / "summary.json").exists() or (
+            args.save and args.resume and Path(args.save).resolve() == Path(args.resume).resolve()):
+        ap.error(f"--save {args.save}: a femshell run is there; save into another directory")
     t0 = time.perf_counter()
     if args.resume:
         run = Path(args.resume)
-        if not (run / "scene.toml").is_file() or not (run / "checkpoint.npz").is_file():
-            ap.error(f"--resume {run}: needs the scene.toml and checkpoint.npz of a femshell run there")
+        if not (run / "scene.toml").is_file():
+            ap.error(f"--resume {run}: no scene.toml of a femshell run there")
         scene = load_scene(str(run / "scene.toml"), overrides=args.overrides)
+        if scene.kind != "time":
+            ap.error(f"--resume {run}: a {scene.kind} run; this script follows the time loop")
+        try:
+            state, _ = load_checkpoint(run / "checkpoint.npz")
+        except (CheckpointError, FileNotFoundError) as exc:
+            ap.error(f"--resume {run}: {exc}")
         mesh = make_mesh(scene)
-        state, _ = load_checkpoint(run / "checkpoint.npz")
         loop = time_loop(scene, mesh, state=state)
         print(f"{run}, {mesh.n_vertices} vertices: continued from step {loop.step}, t = {loop.t:.6g}", flush=True)
     else:
