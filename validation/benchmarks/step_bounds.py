@@ -16,10 +16,10 @@ vertices, ds_max = 0.05: the model of the 25 000-vertex covering run at a quarte
 nothing in DIR is written) under that run's own scene and any ``--set``, e.g. another
 ``solver.dt_max`` or ``solver.source_rule`` from the same state. ``--save DIR`` writes the state
 reached (scene.toml, checkpoint.npz) for a later ``--resume DIR`` of this script. A step that
-``solver.dt_max`` caps below both limits is counted as "dt_max". The last line counts the steps whose Newton solve
-needed 2 or more iterations past the quasi-Newton start (where the shape rearranges locally; they
-cost several quiet steps each) and gives the wall time per unit of model time (the first step's
-compilation included: a few seconds).
+``solver.dt_max`` caps below both limits is counted as "dt_max". The last line counts the steps
+whose Newton solve needed 2 or more iterations past the quasi-Newton start (where the shape
+rearranges locally; they cost several quiet steps each) and gives the wall time per unit of model
+time (the first step's compilation included: a few seconds).
 
     MKL_NUM_THREADS=1 .venv/bin/python validation/benchmarks/step_bounds.py [--steps 400] \\
         [--n-vertices 2700] [--radius 15] [--set chemistry.w=120 ...] [--resume DIR] [--save DIR]
@@ -48,7 +48,7 @@ def main(argv=None):
     ap.add_argument("--set", dest="overrides", action="append", default=[],
                     help=f"scene key=value, after the defaults {' '.join(DEFAULTS)} (with --resume: after the run's scene)")
     ap.add_argument("--resume", metavar="DIR", help="continue the femshell run in DIR (read only)")
-    ap.add_argument("--save", metavar="DIR", help="write the state reached as a run directory (scene.toml, checkpoint)")
+    ap.add_argument("--save", metavar="DIR", help="write the state reached (scene.toml, checkpoint.npz) for --resume")
     args = ap.parse_args(argv)
     if args.steps < 1 or args.n_vertices < 100 or args.radius <= 0:
         ap.error("--steps >= 1, --n-vertices >= 100 and --radius > 0")
