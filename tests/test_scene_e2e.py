@@ -160,7 +160,8 @@ def test_resume_after_max_steps_is_bitwise_identical(uninterrupted, tmp_path):
     assert run("default", out, overrides=RESUME) == 2
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
     assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
-    assert json.loads((out / "summary.json").read_text())["resumes"] == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["resumes"] == 1 and summary["setting_changes"] == []
     assert_same_run(uninterrupted, out)
     # resuming a finished run does nothing
     assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
@@ -179,6 +180,9 @@ def test_resume_can_cap_the_time_step(uninterrupted, tmp_path, capsys):
     assert "-> 0.004" in said and "solver.source_rule 'start' -> 'extrapolated'" in said
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "t_final" and s["final"]["t"] == pytest.approx(0.12)
+    [made] = s["setting_changes"]
+    assert made["step"] == 2 and {c["key"]: c["to"] for c in made["changes"]} == {
+        "solver.dt_max": 0.004, "solver.dt_initial": 0.001, "solver.source_rule": "extrapolated"}
     times = [t for t, _ in read_pvd(out / "series.pvd")]
     assert max(np.diff(times[2:])) <= 0.004 * (1 + 1e-12)      # every step after the resume within the cap
     assert s["steps"] > load_checkpoint(uninterrupted / "checkpoint.npz")[1]["step"]

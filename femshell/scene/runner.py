@@ -35,7 +35,8 @@ Policy (design.md section 4; every file is written atomically by :mod:`femshell.
   ``solver.stationary_pattern_tol`` (so a finished run can be extended), and the time step's
   cap and source rule, ``solver.dt_max`` (with ``solver.dt_initial``, which a resumed run does not
   use but which must not exceed dt_max) and ``solver.source_rule``: they change the path's steps,
-  not the model. The resume says which of these keys changed. With the run's own scene the
+  not the model. The resume says which of these keys changed, and ``summary.json`` keeps every
+  such change with the step it came at (``setting_changes``). With the run's own scene the
   time loop and the static solver resume bit for bit as the uninterrupted run; a continuation
   restarts its branch from the last accepted point along the secant (same branch, not the
   same steps).
@@ -362,6 +363,8 @@ class BaseRunner:
         self.newton_total = 0
         self.wall_before = 0.0
         self.resumes = 0
+        self.new_settings = []          # resumable keys changed by this invocation (set by run_scene)
+        self.setting_changes = []       # all invocations': [{"step", "changes"}], kept in the checkpoint
         self.last_frame_step = -1
         self.last_ckpt_step = -1
         self._identity = None          # the checkpoint's mesh fingerprint and scene, made at the first one
@@ -464,7 +467,8 @@ class BaseRunner:
     def checkpoint(self):
         meta = {"kind": self.kind, "step": self.step, "series_time": self.series_time(),
                 "wall_s": self.wall_before + self.p.elapsed, "newton_total": self.newton_total,
-                "resumes": self.resumes, "scene": self.scene.name, "n_vertices": self.mesh.n_vertices}
+                "resumes": self.resumes, "setting_changes": self.setting_changes, "scene": self.scene.name,
+                "n_vertices": self.mesh.n_vertices}
         if self._identity is None:          # what the run is made of does not change: computed once
             self._identity = {"mesh": mesh_fingerprint(self.mesh), "scene_toml": dump_toml(self.scene.data)}
         meta.update(self._identity)
@@ -485,6 +489,9 @@ class BaseRunner:
             self.p.wall_before = self.wall_before
             self.newton_total = int(meta.get("newton_total", 0))
             self.resumes = int(meta.get("resumes", 0)) + 1
+            self.setting_changes = list(meta.get("setting_changes", []))
+            if self.new_settings:
+                self.setting_changes.append({"step": self.step, "changes": self.new_settings})
             self.restore(state, meta)
             raise_if_interrupted()
             self.writer.truncate_after(float(meta["series_time"]))
@@ -595,6 +602,7 @@ class BaseRunner:
             "source": str(self.scene.source) if self.scene.source else None,
             "solver": self.kind, "status": self.status, "message": self.message,
             "steps": self.step, "steps_this_run": self.steps_this_run, "resumes": self.resumes,
+            "setting_changes": self.setting_changes,
             "newton_iterations": self.newton_total,
             "wall_s": self.wall_before + self.p.elapsed, "wall_s_this_run": self.p.elapsed,
             "mesh": {"n_vertices": m.n_vertices, "n_triangles": m.n_triangles, "n_edges": m.topology.n_edges,
@@ -1480,7 +1488,7 @@ def _differences_from(text, label, sc, base_dir) -> tuple[list, list]:
 
 
 def _scene_differences(old: dict, new: dict) -> tuple[list, list]:
-    """(differences that forbid a resume, changes of RESUMABLE_CHANGES keys as "solver.key old -> new")."""
+    """(differences that forbid a resume, changes of RESUMABLE_CHANGES keys as {"key", "from", "to"})."""
     diffs, changes = [], []
     for sec in sorted(set(old) | set(new)):
         if sec in ("description", "name", "output"):
@@ -1492,7 +1500,7 @@ def _scene_differences(old: dict, new: dict) -> tuple[list, list]:
                     continue                # a mesh file may move: the checkpoint's fingerprint checks its content
                 if (sec, k) in RESUMABLE_CHANGES:
                     if a.get(k) != b.get(k):
-                        changes.append(f"{sec}.{k} {a.get(k)!r} -> {b.get(k)!r}")
+                        changes.append({"key": f"{sec}.{k}", "from": a.get(k), "to": b.get(k)})
                 elif a.get(k) != b.get(k):
                     diffs.append(f"[{sec}] {k}: {a.get(k)!r} in the run, {b.get(k)!r} now")
         elif a != b:
@@ -1631,8 +1639,10 @@ def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_step
             elif resume and not quiet:
                 progress.say(f"scene '{sc.name}': resuming the run in {rd.path}/")
             if resume_from is not None and changes:
-                progress.say("  changed since the run's last invocation: " + ", ".join(changes))
+                progress.say("  changed since the run's last invocation: "
+                             + ", ".join(f"{c['key']} {c['from']!r} -> {c['to']!r}" for c in changes))
             runner = RUNNERS[sc.kind](sc, mesh, rd, progress=progress, max_steps=max_steps, verbose=verbose)
+            runner.new_settings = list(changes)
             return runner.run(resume_from)
         except StepFailure as exc:          # the initial state could not be made: nothing to checkpoint
             progress.failure(f"failed: {exc}")
