@@ -363,7 +363,6 @@ class BaseRunner:
         self.newton_total = 0
         self.wall_before = 0.0
         self.resumes = 0
-        self.new_settings = []          # resumable keys changed by this invocation (set by run_scene)
         self.setting_changes = []       # all invocations': [{"step", "changes"}], kept in the checkpoint
         self.last_frame_step = -1
         self.last_ckpt_step = -1
@@ -479,7 +478,8 @@ class BaseRunner:
     def extra_meta(self) -> dict:
         return {}
 
-    def run(self, resume_from=None) -> int:
+    def run(self, resume_from=None, changes=()) -> int:
+        """Run (or resume from ``resume_from``, with the resumable scene keys ``changes`` changed) to the end."""
         rdp = self.rd.path
         self.writer = fio.TimeSeriesWriter(rdp, self.mesh, SERIES, resume=resume_from is not None)
         if resume_from is not None:
@@ -490,8 +490,8 @@ class BaseRunner:
             self.newton_total = int(meta.get("newton_total", 0))
             self.resumes = int(meta.get("resumes", 0)) + 1
             self.setting_changes = list(meta.get("setting_changes", []))
-            if self.new_settings:
-                self.setting_changes.append({"step": self.step, "changes": self.new_settings})
+            if changes:
+                self.setting_changes.append({"step": self.step, "changes": list(changes)})
             self.restore(state, meta)
             raise_if_interrupted()
             self.writer.truncate_after(float(meta["series_time"]))
@@ -1496,12 +1496,12 @@ def _scene_differences(old: dict, new: dict) -> tuple[list, list]:
         a, b = old.get(sec), new.get(sec)
         if isinstance(a, dict) and isinstance(b, dict):
             for k in sorted(set(a) | set(b)):
-                if (sec, k) == ("mesh", "file"):
-                    continue                # a mesh file may move: the checkpoint's fingerprint checks its content
+                # a mesh file may move: the checkpoint's fingerprint checks its content
+                if (sec, k) == ("mesh", "file") or a.get(k) == b.get(k):
+                    continue
                 if (sec, k) in RESUMABLE_CHANGES:
-                    if a.get(k) != b.get(k):
-                        changes.append({"key": f"{sec}.{k}", "from": a.get(k), "to": b.get(k)})
-                elif a.get(k) != b.get(k):
+                    changes.append({"key": f"{sec}.{k}", "from": a.get(k), "to": b.get(k)})
+                else:
                     diffs.append(f"[{sec}] {k}: {a.get(k)!r} in the run, {b.get(k)!r} now")
         elif a != b:
             diffs.append(f"[{sec}] differs")
@@ -1642,8 +1642,7 @@ def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_step
                 progress.say("  changed since the run's last invocation: "
                              + ", ".join(f"{c['key']} {c['from']!r} -> {c['to']!r}" for c in changes))
             runner = RUNNERS[sc.kind](sc, mesh, rd, progress=progress, max_steps=max_steps, verbose=verbose)
-            runner.new_settings = list(changes)
-            return runner.run(resume_from)
+            return runner.run(resume_from, changes)
         except StepFailure as exc:          # the initial state could not be made: nothing to checkpoint
             progress.failure(f"failed: {exc}")
             aside = rd.path / REPLACED

@@ -52,8 +52,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.steps < 1 or args.n_vertices < 100 or args.radius <= 0:
         ap.error("--steps >= 1, --n-vertices >= 100 and --radius > 0")
-    if args.save and (Path(args.save) / "summary.json").exists() or (
-            args.save and args.resume and Path(args.save).resolve() == Path(args.resume).resolve()):
+    if args.save and ((Path(args.save) / "summary.json").exists()
+                      or args.resume and Path(args.save).resolve() == Path(args.resume).resolve()):
         ap.error(f"--save {args.save}: a femshell run is there; save into another directory")
     t0 = time.perf_counter()
     if args.resume:
