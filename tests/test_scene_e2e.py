@@ -194,6 +194,19 @@ def test_resume_can_cap_the_time_step(uninterrupted, tmp_path, capsys):
     assert "[solver] ds_max: " in capsys.readouterr().err
 
 
+def test_resume_reports_changes_against_the_checkpoints_scene(tmp_path):
+    """A resume killed before its first checkpoint leaves a newer scene.toml: the steps were made with the
+    checkpoint's scene, so resuming with that scene records no change."""
+    out = tmp_path / "run"
+    assert run("default", out, extra=["--max-steps", "2"], overrides=RESUME) == 0
+    scene = out / "scene.toml"
+    text = scene.read_text()
+    assert 'source_rule = "start"' in text          # as a killed resume with another source rule leaves it:
+    scene.write_text(text.replace('source_rule = "start"', 'source_rule = "extrapolated"'))
+    assert run("default", out, extra=["--resume"], overrides=RESUME) == 0
+    assert json.loads((out / "summary.json").read_text())["setting_changes"] == []
+
+
 def test_ctrl_c_checkpoints_and_resumes(uninterrupted, tmp_path, monkeypatch):
     from femshell.coupled import CoupledLoop
 

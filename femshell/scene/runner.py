@@ -1572,12 +1572,15 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
             raise RunDirError(f"{ck}: a checkpoint of a {resume_from[1].get('kind')} run, but the scene runs "
                               f"{sc.kind}")
         # the checkpoint's own scene (scene.toml in the directory may have been edited or deleted since),
-        # then scene.toml
+        # then scene.toml; the changes reported are against the first that exists, the scene the
+        # checkpoint's steps were made with (a resume killed before its first checkpoint leaves a newer scene.toml)
         old_p = rd.path / SCENE_FILE
+        compared = False
         for label, text in ((ck, resume_from[1].get("scene_toml")),
                             (old_p, old_p.read_text(encoding="utf-8") if old_p.is_file() else None)):
             diffs, new_settings = _differences_from(text, label, sc, rd.path)
-            changes = changes or new_settings       # against the checkpoint's scene: the last invocation's
+            if text and not compared:
+                changes, compared = new_settings, True
             if len(diffs) > 8:              # another scene altogether: the first keys say enough
                 diffs = diffs[:8] + [f"... and {len(diffs) - 8} more"]
             if diffs:
