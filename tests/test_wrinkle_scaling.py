@@ -31,6 +31,19 @@ def test_rim_wavenumber_of_a_dome_with_k_waves(disk, k):
     assert ws.rim_wavenumber(disk, dome)[1] < 1e-2
 
 
+@pytest.mark.parametrize("k", [2, 8])
+def test_single_mode_seed_has_that_wavenumber_at_the_rim(disk, k):
+    z = ws.seed_shape(disk, waves=ws.SEED_WAVES, modes=(k,))
+    n, rel = ws.rim_wavenumber(disk, z)
+    assert n == k
+    power = disk.azimuthal_power(z, ws.RIM_RADII, 24)
+    others = np.delete(power[2:], k - 2)
+    assert others.max() < 1e-3 * power[k]
+    # the broadband seed spreads its power over k = 2 ... 16
+    broad = disk.azimuthal_power(ws.seed_shape(disk), ws.RIM_RADII, 24)
+    assert np.count_nonzero(broad[2:17] > 0.1 * broad[2:17].max()) >= 10
+
+
 def test_fit_exponent_recovers_a_power_law():
     h = np.array([0.25, 0.5, 1.0, 2.0])
     n = 2 * math.pi * ws.R2 / (4.0 * h**0.5)        # exact λ = 4 h^(1/2), non-integer n
@@ -76,3 +89,5 @@ def test_seeded_state_resumes_from_its_checkpoint(tmp_path, monkeypatch):
     np.testing.assert_array_equal(again, resumed)
     with pytest.raises(ValueError, match="another run"):
         ws.seeded_state(d, 0.3, 0.1, checkpoint=ck)
+    with pytest.raises(ValueError, match="modes"):
+        ws.seeded_state(d, 0.2, 0.1, checkpoint=ck, modes=(8,))

@@ -23,31 +23,13 @@ import argparse
 import fcntl
 import json
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 
 from femshell.io import atomic_write_json
-from femshell.solvers.linear import LinearSolverError
 from femshell.validation import wrinkle_scaling as ws
-from femshell.validation.disk_wrinkles import Disk, warm_up
-
-
-def sample(h, eps, resolution, seed, checkpoint=None):
-    """One seeded state; with ``checkpoint`` a sample stopped midway resumes there (its wall_s is then
-    this call's)."""
-    d = Disk(h, ws.R2, resolution)
-    t0 = time.perf_counter()
-    u, failures = ws.seeded_state(d, eps, ws.EPS_STEP, seed=seed, checkpoint=checkpoint)
-    n, rel = ws.rim_wavenumber(d, d.deflection(u))
-    try:
-        n_negative, why = int(d.n_negative(u, eps)), None
-    except LinearSolverError as exc:    # seen at h = 2 before the element Hessians were symmetrised
-        n_negative, why = None, f"stability not decided: {exc}"
-    return {"h": h, "eps": eps, "resolution": resolution, "seed": seed, "n_vertices": d.n_vertices, "n": n,
-            "rel": rel, "energy": float(d.model.energy(u)), "n_negative": n_negative, "error": why,
-            "newton_failures": failures, "wall_s": time.perf_counter() - t0}
+from femshell.validation.disk_wrinkles import warm_up
 
 
 def read_samples(path):
@@ -100,7 +82,7 @@ def main(argv=None):
                 continue
             a.checkpoints.mkdir(parents=True, exist_ok=True)
             ck = a.checkpoints / f"h{h:g}-eps{a.eps:g}-res{a.resolution}-seed{seed}.npz"
-            s = sample(h, a.eps, a.resolution, seed, checkpoint=ck)
+            s = ws.seeded_sample(h, a.eps, a.resolution, seed, checkpoint=ck)
             print(f"h={h:g} eps={a.eps:g} resolution {a.resolution} seed {seed}: n = {s['n']}, rim amplitude "
                   f"{s['rel']:.3g}, energy {s['energy']:.8g}, {s['n_negative']} negative eigenvalues "
                   f"({s['wall_s']:.0f} s){'; ' + s['error'] if s['error'] else ''}", flush=True)

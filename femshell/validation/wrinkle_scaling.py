@@ -50,11 +50,13 @@ wavelength one can fit a scaling law to.
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import numpy as np
 
 from ..io import load_checkpoint, save_checkpoint
+from ..solvers.linear import LinearSolverError
 from ..solvers.newton import NewtonError, minimize
 from .disk_wrinkles import Disk, warm_up
 from .framework import Row, timed
@@ -90,21 +92,34 @@ REFERENCE = {"h": 0.5, "eps": -0.25}
 _LAST = {}
 
 
-def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, checkpoint=None):
-    """A stable equilibrium of ``disk`` at growth ``eps`` reached from a broadband perturbation (module
-    docstring); ``waves=0``: from the small dome alone (an axisymmetric start).
+def seed_shape(disk, seed=SEED, waves=SEED_WAVES, modes=SEED_MODES):
+    """Out-of-plane displacement z of a seeded start: the dome SEED_DOME · h exp(−r²/R2²) plus azimuthal
+    waves on a band around r = R2,
+
+        z_waves = waves · h · exp(−(r − R2)²/(R2/2)²) · Σ_k cos(kφ + φ_k) / √len(modes),   k in ``modes``,
+
+    with phases φ_k drawn from ``seed`` (module docstring). ``modes=(8,)`` seeds one wave of amplitude
+    ``waves`` · h; ``waves=0`` the dome alone."""
+    P = disk.points
+    r, phi = np.hypot(P[:, 0], P[:, 1]), np.arctan2(P[:, 1], P[:, 0])
+    phases = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, len(modes))
+    azimuthal = sum(np.cos(k * phi + p) for k, p in zip(modes, phases)) / math.sqrt(len(modes))
+    h, R = disk.h, disk.R2
+    return waves * h * azimuthal * np.exp(-(((r - R) / (0.5 * R)) ** 2)) + SEED_DOME * h * np.exp(-((r / R) ** 2))
+
+
+def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, checkpoint=None, modes=SEED_MODES):
+    """A stable equilibrium of ``disk`` at growth ``eps`` reached from the start :func:`seed_shape` (by
+    default broadband; ``waves=0``: the small dome alone, an axisymmetric start).
     Returns (u, n_newton_failures).
 
     With ``checkpoint`` (an .npz path) the state is saved after every ε step and a run resumes from
     the last saved step (a finished state is read back, not recomputed); a checkpoint of another
-    disk, seed or ε path is refused (ValueError naming the difference).
+    disk, seed, seed modes or ε path is refused (ValueError naming the difference).
     """
-    P = disk.points
-    r, phi = np.hypot(P[:, 0], P[:, 1]), np.arctan2(P[:, 1], P[:, 0])
-    phases = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, len(SEED_MODES))
-    azimuthal = sum(np.cos(k * phi + p) for k, p in zip(SEED_MODES, phases)) / math.sqrt(len(SEED_MODES))
+    modes = [int(k) for k in modes]
+    z = seed_shape(disk, seed, waves, modes)
     h, R = disk.h, disk.R2
-    z = waves * h * azimuthal * np.exp(-(((r - R) / (0.5 * R)) ** 2)) + SEED_DOME * h * np.exp(-((r / R) ** 2))
     model = disk.model
     q = model.full(model.initial_unknowns())
     q[2: 3 * disk.n_vertices: 3] += z
@@ -112,7 +127,7 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
     failures = 0
     n_steps = max(1, int(math.ceil(eps / eps_step - 1e-9)))
     meta = {"h": h, "R2": R, "R1": disk.R1, "n_vertices": disk.n_vertices, "n_unknowns": int(len(u)),
-            "eps": float(eps), "n_steps": n_steps, "seed": seed, "waves": waves, "dome": SEED_DOME}
+            "eps": float(eps), "n_steps": n_steps, "seed": seed, "waves": waves, "dome": SEED_DOME, "modes": modes}
     done = 0
     if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
         state, saved = load_checkpoint(checkpoint)
@@ -134,6 +149,24 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
             save_checkpoint(checkpoint, {"u": u, "failures": failures, "step": step}, meta)
     disk.problem.set_parameter(float(eps))
     return u, failures
+
+
+def seeded_sample(h, eps, resolution, seed=SEED, waves=SEED_WAVES, modes=SEED_MODES, checkpoint=None):
+    """One seeded stable state of Disk(h, R2, resolution) at ``eps`` (:func:`seeded_state`) as a record:
+    its rim wavenumber n and amplitude ``rel`` (:func:`rim_wavenumber`), energy, negative eigenvalues
+    (``None`` with ``error`` saying why when the factorisation fails), Newton failures and wall time (of
+    this call: a sample resumed from ``checkpoint`` counts only the rest)."""
+    d = Disk(h, R2, resolution)
+    t0 = time.perf_counter()
+    u, failures = seeded_state(d, eps, EPS_STEP, seed=seed, waves=waves, checkpoint=checkpoint, modes=modes)
+    n, rel = rim_wavenumber(d, d.deflection(u))
+    try:
+        n_negative, why = int(d.n_negative(u, eps)), None
+    except LinearSolverError as exc:    # seen at h = 2 before the element Hessians were symmetrised
+        n_negative, why = None, f"stability not decided: {exc}"
+    return {"h": h, "eps": eps, "resolution": resolution, "seed": seed, "n_vertices": d.n_vertices, "n": n,
+            "rel": rel, "energy": float(d.model.energy(u)), "n_negative": n_negative, "error": why,
+            "newton_failures": failures, "wall_s": time.perf_counter() - t0}
 
 
 def rim_wavenumber(disk, w, radii=RIM_RADII, k_max=24):
