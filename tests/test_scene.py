@@ -240,6 +240,16 @@ def test_overrides_apply_and_are_validated(tmp_path):
     assert out["boundary"][0]["curve"] == "right" and raw["boundary"][0]["curve"] == "left"
 
 
+def test_overrides_are_named_in_the_description():
+    """A run's scene, summary and header say which values differ from the file's."""
+    sc = load_scene("sphere-single-bulge", ["mesh.radius=15", "chemistry.D=0.5"])
+    assert sc["description"] == load_scene("sphere-single-bulge")["description"] + \
+        " [--set mesh.radius=15 chemistry.D=0.5]"
+    assert load_scene("sphere-single-bulge", ["description=R = 15", "mesh.radius=15"])["description"] == "R = 15"
+    raw = parse_scene(PLATE, "x")
+    assert apply_overrides(raw, ["boundary.0.curve=right"], note=False)["description"] == raw["description"]
+
+
 def test_dump_toml_round_trip():
     for name in list_scenes():
         sc = load_scene(name)

@@ -1528,7 +1528,7 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
             raise RunDirError(f"{out}: no {SCENE_FILE} to resume from; give the SCENE too")
         raw = parse_scene(p.read_text(encoding="utf-8"), str(p))
         from .schema import apply_overrides
-        raw = apply_overrides(raw, overrides, str(p))
+        raw = apply_overrides(raw, overrides, str(p), note=False)   # changes on resume go to setting_changes
         sc = validate(raw, name=raw.get("name") or Path(out).name, label=str(p), source=None, base_dir=Path(out))
     else:
         sc = load_scene(scene, overrides)

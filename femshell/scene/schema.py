@@ -391,12 +391,17 @@ def parse_override(text: str):
     return parts, value
 
 
-def apply_overrides(raw: dict, overrides, label="scene") -> dict:
-    """A copy of ``raw`` with ``overrides`` (list of "key=value" or (parts, value)) applied."""
+def apply_overrides(raw: dict, overrides, label="scene", *, note=True) -> dict:
+    """A copy of ``raw`` with ``overrides`` (list of "key=value" or (parts, value)) applied.
+
+    With ``note`` the description gets the overrides appended ("[--set mesh.radius=15]"), so that
+    the scene written with a run, its summary and its header do not describe the file's values alone.
+    """
     data = copy.deepcopy(raw)
-    errors = []
+    errors, shown = [], []
     for ov in overrides or ():
         parts, value = parse_override(ov) if isinstance(ov, str) else ov
+        shown.append(".".join(parts) + "=" + (ov.split("=", 1)[1].strip() if isinstance(ov, str) else _fmt(value)))
         where = data
         ok = True
         for i, p in enumerate(parts[:-1]):
@@ -433,6 +438,9 @@ def apply_overrides(raw: dict, overrides, label="scene") -> dict:
                 where.pop(other, None)
     if errors:
         raise SceneError([f"{label}: {e}" for e in errors])
+    desc = data.get("description")
+    if note and shown and isinstance(desc, str) and not any(s.startswith("description=") for s in shown):
+        data["description"] = f"{desc} [--set {' '.join(shown)}]" if desc else f"[--set {' '.join(shown)}]"
     return data
 
 
