@@ -14,7 +14,7 @@ Each finished sample is written to the JSON at once; running the same command ag
 samples already there (stop it any time). The committed result
 (validation/results/studies/wrinkle-modes.json, table in docs/disk-crosscheck.md) is
 
-    .venv/bin/python validation/wrinkle_modes_study.py --k 2 3 4 5 6 8 10 12 16 --amplitude 1.5
+    .venv/bin/python validation/wrinkle_modes_study.py --k 2 3 4 5 6 7 8 9 10 11 12 14 16 --amplitude 1.5
     .venv/bin/python validation/wrinkle_modes_study.py --k 8 --amplitude 0.3
 
 with the defaults --h 0.25 --eps 0.5 --resolution 12 --seed 1.
