@@ -402,6 +402,7 @@ def apply_overrides(raw: dict, overrides, label="scene", *, note=True) -> dict:
     for ov in overrides or ():
         parts, value = parse_override(ov) if isinstance(ov, str) else ov
         shown.append(".".join(parts) + "=" + (ov.split("=", 1)[1].strip() if isinstance(ov, str) else _fmt(value)))
+        note = note and parts != ["description"]    # a description given by hand is taken as it is
         where = data
         ok = True
         for i, p in enumerate(parts[:-1]):
@@ -439,7 +440,7 @@ def apply_overrides(raw: dict, overrides, label="scene", *, note=True) -> dict:
     if errors:
         raise SceneError([f"{label}: {e}" for e in errors])
     desc = data.get("description")
-    if note and shown and isinstance(desc, str) and not any(s.startswith("description=") for s in shown):
+    if note and shown and isinstance(desc, str):
         data["description"] = f"{desc} [--set {' '.join(shown)}]" if desc else f"[--set {' '.join(shown)}]"
     return data
 
