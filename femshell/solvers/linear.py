@@ -851,7 +851,7 @@ class Refactorizer:
         try:
             if not self.cholesky_first:
                 f = self._factorize(K)
-                if f.inertia is None or f.inertia[1] > 0:     # an unknown inertia proves nothing
+                if f.inertia is None or f.inertia[1] or f.inertia[2]:   # a zero or negative eigenvalue, or unknown
                     return None
             else:
                 f = self._spd = factorize(K, kind="spd", backend=self.backend, reuse=self._spd)
