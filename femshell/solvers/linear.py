@@ -770,6 +770,11 @@ def factorize(K, kind: str = "spd", backend: str = "auto", *, reuse: Factorizati
                          pardiso_matching=pardiso_matching)
 
 
+def _proves_positive_definite(inertia) -> bool:
+    """An inertia (positive, negative, zero) with no negative and no zero eigenvalue; an unknown one proves nothing."""
+    return inertia is not None and inertia[1] == 0 and inertia[2] == 0
+
+
 class Refactorizer:
     """Factorises a sequence of symmetric matrices with one sparsity pattern and reports their inertia.
 
@@ -834,8 +839,7 @@ class Refactorizer:
                 self._try_spd = False
         self._ldl = factorize(K, kind="symmetric_indefinite", backend=self.backend, reuse=self._ldl)
         self.counts["ldlt"] += 1
-        inertia = self._ldl.inertia
-        self._try_spd = inertia is not None and inertia[1] == 0 and inertia[2] == 0
+        self._try_spd = _proves_positive_definite(self._ldl.inertia)
         return self._ldl
 
     def positive_definite(self, K) -> Factorization | None:
@@ -851,7 +855,7 @@ class Refactorizer:
         try:
             if not self.cholesky_first:
                 f = self._factorize(K)
-                if f.inertia is None or f.inertia[1] or f.inertia[2]:   # a zero or negative eigenvalue, or unknown
+                if not _proves_positive_definite(f.inertia):
                     return None
             else:
                 f = self._spd = factorize(K, kind="spd", backend=self.backend, reuse=self._spd)
