@@ -98,7 +98,6 @@ Example
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field, fields, replace
 
@@ -112,13 +111,6 @@ from .growth import THICKNESS_MODES, contractility, element_average, stretch, ta
 from .shell import Material, RestState, ShellModel
 from .solvers.linear import BACKENDS, LinearSolverError, Refactorizer
 from .solvers.newton import NewtonError, minimize
-
-# Bitwise reproducible resumes need a run-to-run reproducible linear solver. Threaded MKL
-# PARDISO is not (measured: the same Newton solve twice in one process differed by 1e-16
-# now and then, with sequential METIS too); MKL's conditional numerical reproducibility
-# mode fixes that. It must be set before MKL starts; a user's own setting wins.
-# (Better placed in femshell/solvers/linear.py before pypardiso is imported.)
-os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 __all__ = ["MechanochemicalModel", "GrowthCoupling", "InitialSpot", "gaussian_spot", "TimeStepping",
            "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "REST_CURVATURES", "feedback_gain",

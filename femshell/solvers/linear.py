@@ -77,10 +77,13 @@ import weakref
 # with the process's history even at one thread. Strict conditional numerical reproducibility
 # and the sequential threading layer remove both. Must be set before MKL is loaded; set either
 # variable in the environment to override: MKL_THREADING_LAYER=GNU factorises the large
-# Hessians on all cores (a coupled step at 25k vertices: 7.3 → 5.6 s on 2 idle cores, measured
-# with validation/benchmarks/coupled_step.py) and gives up bit-for-bit resumes.
-os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
+# Hessians on all cores and gives up bit-for-bit resumes, and with them the reason for strict
+# reproducibility, which is then left off: it slows PARDISO down (measured on a 25k-vertex
+# sphere's Hessian, 150k unknowns, 2 idle cores: Cholesky 1.55 → 1.9 s and a solve 0.06 →
+# 0.15 s on two threads; 1.8 → 3.4 s and 0.10 → 0.125 s on the sequential layer).
 os.environ.setdefault("MKL_THREADING_LAYER", "SEQUENTIAL")
+if os.environ["MKL_THREADING_LAYER"].strip().upper() == "SEQUENTIAL":
+    os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 import numpy as np
 import scipy.sparse as sp
