@@ -492,3 +492,44 @@ def test_the_shift_search_keeps_the_hessians_pattern():
     assert all(nnz == 4 for nnz, _ in seen)                  # the explicit zeros are kept
     np.testing.assert_array_equal(seen[-1][1], np.diag([-1.0 + tau, 2.0 + 2.0 * tau]))
     f.free()
+
+
+class CountedQuartic:
+    """Π(u) = Σ u⁴/4 + u²/2 − u, counting the energy and gradient evaluations; with ``both`` it
+    also offers ``energy_and_gradient``."""
+
+    def __init__(self, n, both):
+        self.calls = {"energy": 0, "gradient": 0, "both": 0}
+        if both:
+            self.energy_and_gradient = self._both
+
+    def energy(self, u):
+        self.calls["energy"] += 1
+        return float(np.sum(u**4 / 4 + u**2 / 2 - u))
+
+    def gradient(self, u):
+        self.calls["gradient"] += 1
+        return u**3 + u - 1
+
+    def _both(self, u):
+        self.calls["both"] += 1
+        return float(np.sum(u**4 / 4 + u**2 / 2 - u)), u**3 + u - 1
+
+    def hessian(self, u):
+        return sp.diags(3 * u**2 + 1).tocsr()
+
+
+def test_line_search_takes_energy_and_gradient_in_one_pass_where_offered():
+    runs = {}
+    for both in (False, True):
+        prob = CountedQuartic(5, both)
+        res = minimize(prob, np.full(5, 3.0), rtol=1e-12, log=None)
+        runs[both] = (res, prob.calls)
+    (plain, plain_calls), (paired, paired_calls) = runs[False], runs[True]
+    root = 0.6823278038280193                         # u³ + u − 1 = 0
+    np.testing.assert_allclose(paired.u, root, rtol=1e-10)
+    assert paired.iterations == plain.iterations
+    # every full step was a paired evaluation: one call where there were two
+    assert paired_calls["both"] >= paired.iterations > 0
+    assert paired_calls["energy"] + paired_calls["gradient"] + paired_calls["both"] < \
+        plain_calls["energy"] + plain_calls["gradient"]

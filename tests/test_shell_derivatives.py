@@ -18,6 +18,9 @@ def _fd_check(model, u, rng, eps=1e-6):
     g = model.gradient(u)
     fd_g = _central(model.energy, u, d, eps)
     assert fd_g == pytest.approx(g @ d, rel=1e-7, abs=1e-10 * np.abs(g).sum())
+    e_both, g_both = model.energy_and_gradient(u)     # the line search's one-pass pair
+    assert e_both == pytest.approx(model.energy(u), rel=1e-13, abs=1e-15)
+    np.testing.assert_array_equal(g_both, g)
     H = model.hessian(u)
     fd_h = _central(model.gradient, u, d, eps)
     assert np.linalg.norm(fd_h - H @ d) <= 1e-6 * np.linalg.norm(fd_h)

@@ -166,6 +166,9 @@ class _ModelAdapter:
     def gradient(self, u):
         return self.model.gradient(u)
 
+    def energy_and_gradient(self, u):
+        return self.model.energy_and_gradient(u)
+
     def hessian(self, u):
         return self.model.hessian(u)
 

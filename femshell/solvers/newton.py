@@ -1,7 +1,9 @@
 r"""Newton's method for equilibria of an energy, returning stable ones when asked.
 
 The solver knows a *problem*: any object with ``energy(u)``, ``gradient(u)`` and
-``hessian(u)`` (scipy sparse, symmetric). It minimises :math:`\Pi(u)`:
+``hessian(u)`` (scipy sparse, symmetric), and optionally ``energy_and_gradient(u)``, both
+in one pass (the line search then tries its full step with it: a full step is usually
+taken, and its gradient is needed next). It minimises :math:`\Pi(u)`:
 
 1. factorise :math:`K = \nabla^2\Pi`: Cholesky where it is positive definite, else a
    symmetric-indefinite LDLᵀ (:class:`~femshell.solvers.linear.Refactorizer`); either gives
@@ -435,14 +437,20 @@ def _line_search(problem, u, e, g, d, c1=1e-4, max_halvings=30, max_step=None):
     slope = g @ d
     r0 = np.linalg.norm(g)
     alpha = 1.0
+    both = getattr(problem, "energy_and_gradient", None)
     for _ in range(max_halvings):
         un = u + alpha * d
-        en = problem.energy(un)
+        gn = None
+        if both is not None and alpha == 1.0:
+            en, gn = both(un)
+        else:
+            en = problem.energy(un)
         if np.isfinite(en):
             # energy differences below round-off cannot rank steps: judge by the residual
             roundoff = 1e-12 * max(abs(e), 1e-300)
             if en <= e + c1 * alpha * slope or abs(en - e) <= roundoff:
-                gn = problem.gradient(un)
+                if gn is None:
+                    gn = problem.gradient(un)
                 if np.all(np.isfinite(gn)) and (en < e - roundoff or np.linalg.norm(gn) < r0):
                     return un, en, gn, True
         alpha *= 0.5
