@@ -194,38 +194,35 @@ def test_threaded_pardiso_refactorises_after_solves():
     assert all(float(res) < 1e-10 for _, res in rows)
 
 
-@pytest.mark.parametrize("layer, cbwr", [(None, "AUTO,STRICT"), ("SEQUENTIAL", "AUTO,STRICT"), ("GNU", None)])
-def test_strict_reproducibility_only_on_the_sequential_layer(layer, cbwr):
-    # MKL's strict reproducibility mode serves bit-for-bit resumes, which only the sequential
-    # layer gives; on a threaded one it would only slow PARDISO down (solves 2.5x at 25k vertices)
+def _variable_after_import(module, name, env_changes):
+    """The environment variable ``name`` in a child process after ``import module``, with the parent's
+    environment minus the variables in ``env_changes``, then those of them that are not None."""
     import os
     import subprocess
     import sys
 
-    env = {k: v for k, v in os.environ.items() if k not in ("MKL_CBWR", "MKL_THREADING_LAYER")}
-    if layer:
-        env["MKL_THREADING_LAYER"] = layer
-    code = "import os, femshell.solvers.linear; print(os.environ.get('MKL_CBWR'))"
+    env = {k: v for k, v in os.environ.items() if k not in env_changes}
+    env.update({k: v for k, v in env_changes.items() if v is not None})
+    code = f"import os, {module}, numpy; print(os.environ.get({name!r}))"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.strip() == str(cbwr)
+    return out.stdout.strip()
+
+
+@pytest.mark.parametrize("layer, cbwr", [(None, "AUTO,STRICT"), ("SEQUENTIAL", "AUTO,STRICT"), ("GNU", None)])
+def test_strict_reproducibility_only_on_the_sequential_layer(layer, cbwr):
+    # MKL's strict reproducibility mode serves bit-for-bit resumes, which only the sequential
+    # layer gives; on a threaded one it would only slow PARDISO down (solves 2.5x at 25k vertices)
+    got = _variable_after_import("femshell.solvers.linear", "MKL_CBWR",
+                                 {"MKL_CBWR": None, "MKL_THREADING_LAYER": layer})
+    assert got == str(cbwr)
 
 
 @pytest.mark.parametrize("given, expected", [(None, "1"), ("3", "3")])
 def test_numpys_blas_on_one_thread_unless_the_environment_says(given, expected):
     # OpenBLAS's idle worker spins ~0.1 s after each vector product and took a core from the
     # PARDISO solves of the quasi-Newton loop (0.12 s instead of 0.07 s at 25k vertices)
-    import os
-    import subprocess
-    import sys
-
-    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
-    if given:
-        env["OPENBLAS_NUM_THREADS"] = given
-    code = "import femshell, os, numpy; print(os.environ.get('OPENBLAS_NUM_THREADS'))"
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.strip() == expected
+    assert _variable_after_import("femshell", "OPENBLAS_NUM_THREADS", {"OPENBLAS_NUM_THREADS": given}) == expected
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -498,22 +498,30 @@ class CountedQuartic:
     """Π(u) = Σ u⁴/4 + u²/2 − u, counting the energy and gradient evaluations; with ``both`` it
     also offers ``energy_and_gradient``."""
 
-    def __init__(self, n, both):
+    def __init__(self, both):
         self.calls = {"energy": 0, "gradient": 0, "both": 0}
         if both:
             self.energy_and_gradient = self._both
 
+    @staticmethod
+    def _energy(u):
+        return float(np.sum(u**4 / 4 + u**2 / 2 - u))
+
+    @staticmethod
+    def _gradient(u):
+        return u**3 + u - 1
+
     def energy(self, u):
         self.calls["energy"] += 1
-        return float(np.sum(u**4 / 4 + u**2 / 2 - u))
+        return self._energy(u)
 
     def gradient(self, u):
         self.calls["gradient"] += 1
-        return u**3 + u - 1
+        return self._gradient(u)
 
     def _both(self, u):
         self.calls["both"] += 1
-        return float(np.sum(u**4 / 4 + u**2 / 2 - u)), u**3 + u - 1
+        return self._energy(u), self._gradient(u)
 
     def hessian(self, u):
         return sp.diags(3 * u**2 + 1).tocsr()
@@ -522,7 +530,7 @@ class CountedQuartic:
 def test_line_search_takes_energy_and_gradient_in_one_pass_where_offered():
     runs = {}
     for both in (False, True):
-        prob = CountedQuartic(5, both)
+        prob = CountedQuartic(both)
         res = minimize(prob, np.full(5, 3.0), rtol=1e-12, log=None)
         runs[both] = (res, prob.calls)
     (plain, plain_calls), (paired, paired_calls) = runs[False], runs[True]
