@@ -315,6 +315,11 @@ def test_zero_row_and_not_spd_and_asymmetric(backend):
     A[:, 5] = 0
     with pytest.raises(LinearSolverError, match="zero .* row.*first row 5"):
         factorize(A.tocsr(), "spd", backend)
+    C = laplacian_2d(10).tocsr()                      # stored zeros, as new values on a held pattern can be
+    rows = np.repeat(np.arange(C.shape[0]), np.diff(C.indptr))
+    C.data[(rows == 99) | (C.indices == 99) | (rows == 7) | (C.indices == 7)] = 0.0
+    with pytest.raises(LinearSolverError, match="2 zero .* row.*first row 7"):
+        factorize(C, "spd", backend)
     with pytest.raises(LinearSolverError, match="not positive definite"):
         factorize(sp.diags([1.0, 2.0, -1.0, 3.0]).tocsr(), "spd", backend)
     B = laplacian_2d(10).tolil()

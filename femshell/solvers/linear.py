@@ -237,8 +237,13 @@ def _check_values(K, check_symmetry: bool):
                                             ("infinite", np.isinf(K.data[bad]).any())) if m)
         raise LinearSolverError(f"matrix has {what} entries in {len(rows)} row(s), first row {rows[0]} "
                                 f"({int(bad.sum())} entries in all); the assembly produced non-finite values")
-    absrow = np.bincount(_row_of_entries(K), weights=np.abs(K.data), minlength=n)
-    zero = np.flatnonzero(absrow == 0)
+    # a row with no nonzero entry, by one pass over the rows' runs (a weighted bincount over the
+    # entries' rows took 4x as long on a 25 000-vertex shell Hessian: 0.08 s per factorisation)
+    nonempty = np.diff(K.indptr) > 0
+    row_has = np.zeros(n, bool)
+    if nonempty.any():
+        row_has[nonempty] = np.logical_or.reduceat(K.data != 0, K.indptr[:-1][nonempty])
+    zero = np.flatnonzero(~row_has)
     if len(zero):
         raise LinearSolverError(f"matrix has {len(zero)} zero (or empty) row(s), first row {zero[0]}: "
                                 f"{_SINGULAR_HINT}")
