@@ -313,44 +313,21 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
     >>> s.n_spots, [r.kind for r in s.regions], bool(abs(s.spot_radius - 20 ** 0.5) < 0.02)
     (2, ['spot', 'spot'], True)
     """
-    pts, tri = _mesh(points, triangles)
-    if len(pts) and not len(tri):
-        raise ValueError(f"no triangles for the {len(pts)} points: the measures need a surface")
-    n = len(pts)
-    cv = _field(c, n, "c")
-    c_star = finite("c_star", c_star)
-    if min_area is not None:
-        min_area = finite("min_area", min_area, 0.0)
     ridge_elongation = finite("ridge_elongation", ridge_elongation, 1.0)
-    tri_area = triangle_areas(pts, tri)
-    area_total = float(tri_area.sum())
-    if min_area is None:
-        min_area = 2.0 * float(np.median(tri_area)) if len(tri) else 0.0
-    f = cv - c_star
-    above = f > 0
-    area_in, contour, segments = _cut_triangles(pts, tri, f)
-    if not above.any():
+    cs = _components(points, triangles, c, c_star, min_area)
+    pts, tri, cv, tri_area, area_total = cs.pts, cs.tri, cs.c, cs.tri_area, cs.area_total
+    if cs.n_comp == 0:
         return PatternMeasures(0, 0, 0.0, area_total, 0.0, float("nan"), float("nan"), [], 0)
-    _, label = connected_components(_vertex_graph(tri, n, above), directed=False)
-    # number the components with a vertex above the threshold 0 … n_comp - 1; -1 elsewhere
-    av = np.flatnonzero(above)
-    _, lv = np.unique(label[av], return_inverse=True)
-    n_comp = int(lv.max()) + 1
-    label = np.full(n, -1)
-    label[av] = lv
-    r_in = _inscribed_radii(pts, tri, above, label, n_comp, segments)
-    # component of each triangle: that of any of its vertices above the threshold
-    vt = label[tri].max(axis=1)                                     # (m,), -1: no vertex above
-    has = vt >= 0
-    comp_area = np.bincount(vt[has], weights=area_in[has], minlength=n_comp)
-    comp_perim = np.bincount(vt[has], weights=contour[has], minlength=n_comp)
+    n_comp, label, vt, has, area_in = cs.n_comp, cs.label, cs.vt, cs.has, cs.area_in
+    r_in = _inscribed_radii(pts, tri, label >= 0, label, n_comp, cs.segments)
+    comp_perim = np.bincount(vt[has], weights=cs.contour[has], minlength=n_comp)
     # area-weighted centroid and second moment of the triangle centroids (weights: area inside)
     xc = pts[tri].mean(axis=1)
     nrm = np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]]) * 0.5  # area vectors
     x = pts[tri]
     sq_edges = sum(np.sum((x[:, a] - x[:, b]) ** 2, axis=1) for a, b in ((0, 1), (1, 2), (2, 0)))
     # vertices and triangles of each component, grouped once (no pass over the mesh per component)
-    ov = av[np.argsort(lv, kind="stable")]
+    ov = cs.av[np.argsort(cs.lv, kind="stable")]
     v_start = np.searchsorted(label[ov], np.arange(n_comp + 1))
     ht = np.flatnonzero(has)
     ot = ht[np.argsort(vt[ht], kind="stable")]
@@ -360,8 +337,8 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
     area_low = 0.0
     for k in range(n_comp):
         verts = ov[v_start[k]:v_start[k + 1]]
-        A = float(comp_area[k])
-        if A < min_area or A <= 0:
+        A = float(cs.comp_area[k])
+        if A < cs.min_area or A <= 0:
             ignored += 1
             continue
         sel = ot[t_start[k]:t_start[k + 1]]
@@ -398,8 +375,62 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
 
 
 def count_spots(points, triangles, c, c_star: float, min_area: float | None = None) -> int:
-    """N_sp: the number of connected regions with c > c* (see :func:`find_spots`)."""
-    return find_spots(points, triangles, c, c_star, min_area=min_area).n_spots
+    """N_sp: the number of connected regions with c > c* (see :func:`find_spots`), without the
+    measures of each region (a run counts them at every step)."""
+    cs = _components(points, triangles, c, c_star, min_area)
+    return int(np.count_nonzero((cs.comp_area >= cs.min_area) & (cs.comp_area > 0)))
+
+
+@dataclass
+class _Components:
+    pts: np.ndarray
+    tri: np.ndarray
+    c: np.ndarray
+    tri_area: np.ndarray
+    area_total: float
+    min_area: float
+    area_in: np.ndarray         # (m,) area of {c > c*} in each triangle
+    contour: np.ndarray         # (m,) length of the level line c = c* in each triangle
+    segments: np.ndarray        # (k, 2, 3) its segments
+    n_comp: int
+    label: np.ndarray           # (n,) component of each vertex above c*, -1 elsewhere
+    av: np.ndarray              # the vertices above c*
+    lv: np.ndarray              # their components
+    vt: np.ndarray              # (m,) component of each triangle (of any vertex above c*), -1: none
+    has: np.ndarray             # vt >= 0
+    comp_area: np.ndarray       # (n_comp,) area of each component
+
+
+def _components(points, triangles, c, c_star, min_area) -> _Components:
+    """The connected components of {c > c*} over the mesh edges and their areas (P1 interpolant)."""
+    pts, tri = _mesh(points, triangles)
+    if len(pts) and not len(tri):
+        raise ValueError(f"no triangles for the {len(pts)} points: the measures need a surface")
+    n = len(pts)
+    cv = _field(c, n, "c")
+    c_star = finite("c_star", c_star)
+    if min_area is not None:
+        min_area = finite("min_area", min_area, 0.0)
+    tri_area = triangle_areas(pts, tri)
+    if min_area is None:
+        min_area = 2.0 * float(np.median(tri_area)) if len(tri) else 0.0
+    f = cv - c_star
+    above = f > 0
+    area_in, contour, segments = _cut_triangles(pts, tri, f)
+    label = np.full(n, -1)
+    av, lv, n_comp = np.zeros(0, int), np.zeros(0, int), 0
+    if above.any():
+        _, comp = connected_components(_vertex_graph(tri, n, above), directed=False)
+        # number the components with a vertex above the threshold 0 … n_comp - 1
+        av = np.flatnonzero(above)
+        _, lv = np.unique(comp[av], return_inverse=True)
+        n_comp = int(lv.max()) + 1
+        label[av] = lv
+    vt = label[tri].max(axis=1) if len(tri) else np.zeros(0, int)
+    has = vt >= 0
+    comp_area = np.bincount(vt[has], weights=area_in[has], minlength=n_comp)
+    return _Components(pts, tri, cv, tri_area, float(tri_area.sum()), min_area, area_in, contour, segments,
+                       n_comp, label, av, lv, vt, has, comp_area)
 
 
 def same_pattern(a: PatternMeasures, b: PatternMeasures, tol: float = 0.02) -> bool:

@@ -50,6 +50,21 @@ def test_k_bumps_give_k_spots(ball, k):
     assert count_spots(ball.points, ball.triangles, c, c_star) == k
 
 
+def test_count_spots_counts_what_find_spots_keeps(ball):
+    # the count alone (every step of a run) against the full measures: noisy fields whose regions
+    # include single vertices barely over c*, which both must leave out (min_area)
+    rng = np.random.default_rng(3)
+    counts = set()
+    for seed in range(6):
+        dirs = rng.standard_normal((8, 3))
+        c = bumps(ball.points, dirs, 1.5) + 0.25 * rng.random(ball.n_vertices)
+        for c_star in (0.3, 0.6, 0.9, 1.3):
+            pm = find_spots(ball.points, ball.triangles, c, c_star)
+            assert count_spots(ball.points, ball.triangles, c, c_star) == pm.n_spots
+            counts.add((pm.n_spots, pm.ignored_regions > 0))
+    assert len({n for n, _ in counts}) > 3 and any(ignored for _, ignored in counts)
+
+
 def test_nothing_above_threshold(ball):
     pm = find_spots(ball.points, ball.triangles, np.zeros(ball.n_vertices), 0.1)
     assert pm.n_spots == 0 and pm.kind == "none" and pm.area_low == 0
