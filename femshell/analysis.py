@@ -315,11 +315,14 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
     """
     ridge_elongation = finite("ridge_elongation", ridge_elongation, 1.0)
     cs = _components(points, triangles, c, c_star, min_area)
-    pts, tri, cv, tri_area, area_total = cs.pts, cs.tri, cs.c, cs.tri_area, cs.area_total
+    pts, tri, cv, tri_area = cs.pts, cs.tri, cs.c, cs.tri_area
+    area_total = float(tri_area.sum())
     if cs.n_comp == 0:
         return PatternMeasures(0, 0, 0.0, area_total, 0.0, float("nan"), float("nan"), [], 0)
-    n_comp, label, vt, has, area_in = cs.n_comp, cs.label, cs.vt, cs.has, cs.area_in
-    r_in = _inscribed_radii(pts, tri, label >= 0, label, n_comp, cs.segments)
+    n_comp, label, vt, area_in = cs.n_comp, cs.label, cs.vt, cs.area_in
+    above = label >= 0
+    has = vt >= 0
+    r_in = _inscribed_radii(pts, tri, above, label, n_comp, cs.segments)
     comp_perim = np.bincount(vt[has], weights=cs.contour[has], minlength=n_comp)
     # area-weighted centroid and second moment of the triangle centroids (weights: area inside)
     xc = pts[tri].mean(axis=1)
@@ -327,7 +330,8 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
     x = pts[tri]
     sq_edges = sum(np.sum((x[:, a] - x[:, b]) ** 2, axis=1) for a, b in ((0, 1), (1, 2), (2, 0)))
     # vertices and triangles of each component, grouped once (no pass over the mesh per component)
-    ov = cs.av[np.argsort(cs.lv, kind="stable")]
+    av = np.flatnonzero(above)
+    ov = av[np.argsort(label[av], kind="stable")]
     v_start = np.searchsorted(label[ov], np.arange(n_comp + 1))
     ht = np.flatnonzero(has)
     ot = ht[np.argsort(vt[ht], kind="stable")]
@@ -335,10 +339,11 @@ def find_spots(points, triangles, c, c_star: float, *, min_area: float | None = 
     regions = []
     ignored = 0
     area_low = 0.0
+    kept = cs.kept()
     for k in range(n_comp):
         verts = ov[v_start[k]:v_start[k + 1]]
         A = float(cs.comp_area[k])
-        if A < cs.min_area or A <= 0:
+        if not kept[k]:
             ignored += 1
             continue
         sel = ot[t_start[k]:t_start[k + 1]]
@@ -378,7 +383,7 @@ def count_spots(points, triangles, c, c_star: float, min_area: float | None = No
     """N_sp: the number of connected regions with c > c* (see :func:`find_spots`), without the
     measures of each region (a run counts them at every step)."""
     cs = _components(points, triangles, c, c_star, min_area)
-    return int(np.count_nonzero((cs.comp_area >= cs.min_area) & (cs.comp_area > 0)))
+    return int(np.count_nonzero(cs.kept()))
 
 
 @dataclass
@@ -387,18 +392,18 @@ class _Components:
     tri: np.ndarray
     c: np.ndarray
     tri_area: np.ndarray
-    area_total: float
     min_area: float
     area_in: np.ndarray         # (m,) area of {c > c*} in each triangle
     contour: np.ndarray         # (m,) length of the level line c = c* in each triangle
     segments: np.ndarray        # (k, 2, 3) its segments
     n_comp: int
     label: np.ndarray           # (n,) component of each vertex above c*, -1 elsewhere
-    av: np.ndarray              # the vertices above c*
-    lv: np.ndarray              # their components
     vt: np.ndarray              # (m,) component of each triangle (of any vertex above c*), -1: none
-    has: np.ndarray             # vt >= 0
     comp_area: np.ndarray       # (n_comp,) area of each component
+
+    def kept(self) -> np.ndarray:
+        """(n_comp,) bool: the components counted as regions (area at least min_area, and positive)."""
+        return (self.comp_area >= self.min_area) & (self.comp_area > 0)
 
 
 def _components(points, triangles, c, c_star, min_area) -> _Components:
@@ -418,7 +423,7 @@ def _components(points, triangles, c, c_star, min_area) -> _Components:
     above = f > 0
     area_in, contour, segments = _cut_triangles(pts, tri, f)
     label = np.full(n, -1)
-    av, lv, n_comp = np.zeros(0, int), np.zeros(0, int), 0
+    n_comp = 0
     if above.any():
         _, comp = connected_components(_vertex_graph(tri, n, above), directed=False)
         # number the components with a vertex above the threshold 0 … n_comp - 1
@@ -429,8 +434,7 @@ def _components(points, triangles, c, c_star, min_area) -> _Components:
     vt = label[tri].max(axis=1) if len(tri) else np.zeros(0, int)
     has = vt >= 0
     comp_area = np.bincount(vt[has], weights=area_in[has], minlength=n_comp)
-    return _Components(pts, tri, cv, tri_area, float(tri_area.sum()), min_area, area_in, contour, segments,
-                       n_comp, label, av, lv, vt, has, comp_area)
+    return _Components(pts, tri, cv, tri_area, min_area, area_in, contour, segments, n_comp, label, vt, comp_area)
 
 
 def same_pattern(a: PatternMeasures, b: PatternMeasures, tol: float = 0.02) -> bool:

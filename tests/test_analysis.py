@@ -55,7 +55,7 @@ def test_count_spots_counts_what_find_spots_keeps(ball):
     # include single vertices barely over c*, which both must leave out (min_area)
     rng = np.random.default_rng(3)
     counts = set()
-    for seed in range(6):
+    for _ in range(6):
         dirs = rng.standard_normal((8, 3))
         c = bumps(ball.points, dirs, 1.5) + 0.25 * rng.random(ball.n_vertices)
         for c_star in (0.3, 0.6, 0.9, 1.3):
