@@ -31,7 +31,8 @@ target, below the limit 0.866 (equibiaxial), and Newton's descent from there run
 folds. So the h sweep stops at h = 3 (R/h = 5), and the ε sweep of design.md's law at 0.5. The
 ``eps_neo_hookean`` and ``h_neo_hookean`` sweeps repeat the ε and h sweeps with the neo-Hookean
 membrane (:mod:`femshell.shell.element`: the same law to second order in the strain, elliptic at
-every stretch), ε up to 0.75; a uniform-thickness h = 2.5 check runs with it too. At ε = 1 it
+every stretch), ε up to 0.75. The uniform-thickness sweep runs with it only: there the spot spreads into
+a pattern of compressed spots, and design.md's law stopped at h = 2.5. At ε = 1 it
 stopped as well (t = 0.34), for another reason: the spot, thinned to h = 0.5 on edges of 0.9, folds
 finer than the mesh (30 edges past 90°). Every state reports its snaps
 (:class:`~femshell.coupled.TimeStepping` ``snap_ds``), its non-elliptic elements and its largest
@@ -52,14 +53,14 @@ residuals (needs three states or more). Reported against 1/2 and −1/4 with no 
 paper's exponents are a claim about its spring network, ours is a measurement). Toleranced rows:
 the invariants of every run (c ≥ 0 and finite, no saddle accepted, the run did not fail).
 
-Measured (full level; table and reading in docs/sphere-patterns.md): spot radius 5.43, 4.63, 3.88, 3.01
-at h = 1.5, 2, 2.5, 3 (volume-conserving, SVK; exponent −0.83 ± 0.12 against +1/2) and 6.78, 5.30, 4.49,
-4.02 with the neo-Hookean membrane (−0.76 ± 0.04); 4.97, 4.76, 4.63 at ε = 0.25, 0.375, 0.5 (SVK; −0.104
-against −1/4) and 5.59, 5.30, 4.87 at ε = 0.25, 0.5, 0.75 (neo-Hookean, ε = 0.75 stopped at t = 39;
-−0.12 ± 0.04); 4.43 / 5.26 from seed widths 1 / 4. With uniform thickness the spot spreads at h = 2
-(12 spots, spacing 5.1, at t = 100) and 2.5 (SVK: 3 spots, then failed at t = 63 past the SVK limit;
-neo-Hookean: 11 spots, spacing 6.2, at t = 100), not at h = 3 (one blister): the uniform sweep's
-radius exponent mixes these patterns.
+Measured (full level, 2026-11-28; table and reading in docs/sphere-patterns.md): spot radius 4.90, 4.62,
+3.88, 3.01 at h = 1.5, 2, 2.5, 3 (volume-conserving, SVK; exponent −0.68 ± 0.18 against +1/2) and 6.86,
+5.41, 4.49, 4.02 with the neo-Hookean membrane (−0.78 ± 0.03); 4.97, 4.76, 4.62 at ε = 0.25, 0.375, 0.5
+(SVK; −0.105 against −1/4); 4.43 / 5.25 from seed widths 1 / 4. ε = 0.75 (neo-Hookean) does not settle:
+its largest H keeps cycling by 2 % with a period of about 0.4 time units, also with dt ≤ 0.004, so the
+wall-time cap stops it. With uniform thickness (neo-Hookean) the spot spreads into 15, 11 and 4 spots at
+h = 2, 2.5, 3 by t = 100 (radius 7.15, 7.65, 9.57: exponent +0.70 ± 0.26; spacing 4.66, 6.24, 14.2:
++2.7 ± 0.9), none of them stationary yet.
 """
 
 from __future__ import annotations
@@ -92,7 +93,6 @@ LEVELS = {
     "full": {"radius": 15.0, "n_vertices": 4000, "t_final": 100.0, "h": (1.5, 2.0, 2.5, 3.0),
              "h_uniform": (2.0, 2.5, 3.0), "eps": (0.25, 0.375, 0.5),
              "eps_nh": (0.25, 0.5, 0.75), "h_nh": (1.5, 2.0, 2.5, 3.0),
-             "uniform_nh_check": (2.5,),
              "seed_check": (1.0, 4.0),
              "mesh_check": (), "wall_time": 1800.0},
 }
@@ -135,13 +135,13 @@ def state_keys(cfg):
     vertices, membrane law)."""
     nv0, w0 = cfg["n_vertices"], SEED_WIDTH
     sweeps = {"h": [(h, EPS_FIXED, "volume", w0, nv0, "svk") for h in cfg["h"]],
-              "h_uniform": [(h, EPS_FIXED, "uniform", w0, nv0, "svk") for h in cfg["h_uniform"]],
+              # SVK cannot go on here: uniform h = 2.5 stopped at t = 63 past its ellipticity limit (docstring)
+              "h_uniform": [(h, EPS_FIXED, "uniform", w0, nv0, "neo-hookean") for h in cfg["h_uniform"]],
               "eps": [(H_FIXED, e, "volume", w0, nv0, "svk") for e in cfg["eps"]],
               "eps_neo_hookean": [(H_FIXED, e, "volume", w0, nv0, "neo-hookean") for e in cfg.get("eps_nh", ())],
               "h_neo_hookean": [(h, EPS_FIXED, "volume", w0, nv0, "neo-hookean") for h in cfg.get("h_nh", ())]}
     checks = ([(H_FIXED, EPS_FIXED, "volume", w, nv0, "svk") for w in cfg["seed_check"]]
-              + [(H_FIXED, EPS_FIXED, "volume", w0, n, "svk") for n in cfg["mesh_check"]]
-              + [(h, EPS_FIXED, "uniform", w0, nv0, "neo-hookean") for h in cfg.get("uniform_nh_check", ())])
+              + [(H_FIXED, EPS_FIXED, "volume", w0, n, "svk") for n in cfg["mesh_check"]])
     return sweeps, checks
 
 
@@ -178,7 +178,8 @@ def run(level, out_dir=None, log=None):
         log(f"    {r['status']} at t = {r['t']:.4g}: N_sp {m.n_spots}, spot radius {m.spot_radius:.4g}, "
             f"max c {r['max_c']:.3g}, {r['steps']} steps, {r['wall_s']:.0f} s")
         rows.extend(state_rows(key, r))
-    for var, label in (("h", "h (volume-conserving thickness)"), ("h_uniform", "h (uniform thickness)"),
+    for var, label in (("h", "h (volume-conserving thickness)"),
+                       ("h_uniform", "h (uniform thickness, neo-Hookean membrane)"),
                        ("eps", "eps"), ("eps_neo_hookean", "eps (neo-Hookean membrane)"),
                        ("h_neo_hookean", "h (volume-conserving, neo-Hookean membrane)")):
         keys = [k for k in sweeps[var] if k in states]
@@ -240,7 +241,7 @@ def plot(rows, fig):
         return
     ax1, ax2, ax3, ax4 = fig.subplots(1, 4)
     ticks = {}
-    labels = {"h": "volume-conserving", "h_uniform": "uniform", "eps": f"h={H_FIXED:g}",
+    labels = {"h": "volume-conserving", "h_uniform": "uniform, neo-Hookean", "eps": f"h={H_FIXED:g}",
               "eps_neo_hookean": f"h={H_FIXED:g}, neo-Hookean", "h_neo_hookean": "volume-conserving, neo-Hookean"}
     for ax, var, style in ((ax1, "h", "o-"), (ax1, "h_uniform", "s--"), (ax1, "h_neo_hookean", "^-."),
                            (ax2, "eps", "o-"), (ax2, "eps_neo_hookean", "s--")):
@@ -256,13 +257,10 @@ def plot(rows, fig):
         ticks.setdefault(ax, set()).update(x.tolist())
     labelled = set()
     for k in (k for k in _LAST["checks"] if k in states and states[k]["measures"].n_spots):
-        seed_or_mesh = k[2] == "volume"           # h = 2 again: on both panels; the uniform check on h's only
-        label = "seed/mesh checks" if seed_or_mesh else "uniform, neo-Hookean"
-        for ax, x in ((ax1, k[0]), (ax2, k[1])) if seed_or_mesh else ((ax1, k[0]),):
-            ax.loglog([x], [states[k]["measures"].spot_radius], "x" if seed_or_mesh else "D",
-                      color="tab:red" if seed_or_mesh else "tab:purple",
-                      label=None if (label, ax) in labelled else label)
-            labelled.add((label, ax))
+        for ax, x in ((ax1, k[0]), (ax2, k[1])):        # h = 2 again, from other seeds or meshes: on both panels
+            ax.loglog([x], [states[k]["measures"].spot_radius], "x", color="tab:red",
+                      label=None if ax in labelled else "seed/mesh checks")
+            labelled.add(ax)
     for ax, xl in ((ax1, "h"), (ax2, "eps")):
         xs = sorted(ticks.get(ax, ()))       # the sweep's values, not crowded decades (after every loglog call)
         ax.set_xticks(xs, [f"{v:g}" for v in xs], minor=False)
