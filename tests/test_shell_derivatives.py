@@ -317,3 +317,21 @@ def test_element_chunks_on_threads_give_the_same_bits(monkeypatch, tmp_path):
     monkeypatch.setenv("FEMSHELL_THREADS", "two")
     with pytest.raises(ValueError, match="FEMSHELL_THREADS = 'two' must be a whole number >= 1"):
         element.element_threads()
+
+
+def test_mid_edge_normal_cannot_turn_past_the_faces():
+    """The edge unknown θ is the tangent of the turning angle: n_e = (m + θ t×m)/√(1 + θ²) is a unit
+    vector turned by arctan θ, so n_e·m > 0 for every θ. An angle unknown (cos θ m + sin θ t×m) turns past
+    ±π/2, where the normal reads a kink between its faces as curvature of the opposite sign (a spurious
+    lower-energy state Newton found on a seeded disk at θ = 3.16; docs/disk-crosscheck.md)."""
+    from femshell.shell.element import turned_normal
+    rng = np.random.default_rng(3)
+    m = rng.standard_normal(3)
+    m /= np.linalg.norm(m)
+    t = np.cross(m, rng.standard_normal(3))
+    t /= np.linalg.norm(t)
+    for theta in (-1e6, -3.16, -1.0, 0.0, 1e-4, 2.0, 3.16, 1e6):
+        n = np.asarray(turned_normal(m, t, theta))
+        assert np.linalg.norm(n) == pytest.approx(1.0, abs=1e-14)
+        assert n @ m > 0
+        assert np.arctan2(n @ np.cross(t, m), n @ m) == pytest.approx(np.arctan(theta), abs=1e-14)
