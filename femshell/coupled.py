@@ -117,7 +117,8 @@ __all__ = ["MechanochemicalModel", "GrowthCoupling", "InitialSpot", "gaussian_sp
            "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES"]
 
 REST_CURVATURES = ("mesh", "k0")
-STATE_VERSION = 1
+#: 2: edge unknowns are tangents of the mid-edge normals' turning angles (1: the angles)
+STATE_VERSION = 2
 
 
 class CoupledError(RuntimeError):
@@ -1326,6 +1327,8 @@ class CoupledLoop:
             raise ValueError(f"state version {state['version']} is newer than this femshell ({STATE_VERSION})")
         c = np.array(state["c"], dtype=float)
         u = np.array(state["u"], dtype=float)
+        # version 1 stored edge angles: read as tangents they would be other normals
+        from_angles = int(state.get("version", STATE_VERSION)) < 2
         if c.shape != (self.mesh.n_vertices,):
             raise ValueError(f"state c has shape {c.shape}, the mesh has {self.mesh.n_vertices} vertices")
         if u.shape != (self.shell.n_free,):
@@ -1333,6 +1336,8 @@ class CoupledLoop:
                              "(other mesh or boundary conditions?)")
         if not (np.all(np.isfinite(c)) and np.all(np.isfinite(u))):
             raise ValueError("state holds non-finite values")
+        if from_angles:
+            u = self.shell.from_edge_angles(u)
         if np.any(c < 0):
             raise ValueError(f"state c is negative at {int(np.count_nonzero(c < 0))} vertices (a concentration is >= 0)")
         t = _finite("state t", state["t"], 0.0)
@@ -1353,6 +1358,8 @@ class CoupledLoop:
         self._last_ds = float(state.get("last_ds", 0.0))
         u_prev = np.array(state.get("u_prev", np.zeros(0)), dtype=float)
         self._u_prev = u_prev if u_prev.shape == u.shape else None
+        if from_angles and self._u_prev is not None:
+            self._u_prev = self.shell.from_edge_angles(self._u_prev)
         self._h_prev = float(state.get("h_prev", 0.0)) if self._u_prev is not None else 0.0
         self._source_prev = None
         # θ as chosen for the stored dt (a dt clamped to a smaller dt_max only makes it more stable)

@@ -666,3 +666,22 @@ def test_spot_and_feedback_helpers_refuse_what_they_cannot_use():
         feedback_gain(np.ones(3), np.ones(2))
     with pytest.raises(ValueError, match="beta must be a finite number"):
         feedback_step_limit(-19.0, np.nan, 1.0, exponential=True)
+
+
+def test_a_version_1_state_has_its_edge_angles_read_as_tangents(ball, spot_run):
+    """States written before 2026-11-28 hold edge angles θ (n_e = cos θ m + sin θ t×m); the element's
+    unknown is now tan θ, so the resumed loop must hold tan θ (the same normals), and a normal turned
+    past ±π/2 (no counterpart) is refused."""
+    p, st, loop, initial, states, records = spot_run
+    s = states[2]
+    shell, n_pos = loop.shell, 3 * ball.n_vertices
+    q = shell.full(s["u"])
+    q[n_pos:] = np.arctan(q[n_pos:])
+    old_u = q[shell.free]
+    assert np.abs(old_u - s["u"]).max() > 0          # the angles differ from the tangents they stand for
+    lp = CoupledLoop.from_state_dict(ball, p, dict(s, version=1, u=old_u, u_prev=old_u), st)
+    np.testing.assert_allclose(lp.u, s["u"], rtol=1e-14, atol=1e-17)
+    np.testing.assert_allclose(lp._u_prev, s["u"], rtol=1e-14, atol=1e-17)
+    q[n_pos + np.flatnonzero(shell.free[n_pos:])[0]] = 2.0
+    with pytest.raises(ValueError, match="past ±π/2"):
+        CoupledLoop.from_state_dict(ball, p, dict(s, version=1, u=q[shell.free]), st)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from femshell.cli import main
-from femshell.io import load_checkpoint, read_pvd
+from femshell.io import load_checkpoint, read_pvd, save_checkpoint
 from femshell.mesh import SurfaceMesh
 from femshell.scene import SceneError, list_scenes, load_scene, run_scene
 
@@ -851,3 +851,19 @@ def test_a_static_run_stopped_by_an_error_reports_its_accepted_state(tmp_path, m
     model = shell_parts(sc, make_mesh(sc)).model
     model.load_factor = float(state["mu"])
     assert s["final"]["energy"] == pytest.approx(model.energy(np.asarray(state["u"])), rel=1e-9)
+
+
+def test_resume_of_a_checkpoint_with_edge_angles_is_refused(tmp_path, capsys):
+    # a continuation checkpoint written before the edge unknown became the tangent of the normal's angle
+    # holds bare angles, which the shell would read as other normals: refused, the run left as it was
+    over = ["mesh.edge_length=0.4", "solver.stop=1.1e-4", "solver.max_steps=5", "solver.n_eigs=2",
+            "solver.switch_branch=false"]
+    out = tmp_path / "run"
+    assert run("clamped-plate-buckling", out, extra=["--max-steps", "2"], overrides=over) == 0
+    state, meta = load_checkpoint(out / "checkpoint.npz")
+    assert meta.pop("edge_unknown") == "tangent"
+    save_checkpoint(out / "checkpoint.npz", state, meta)
+    before = _tree(out)
+    assert run("clamped-plate-buckling", out, extra=["--resume"], overrides=over) == 2
+    assert "took the tangent of the mid-edge normal's angle" in capsys.readouterr().err
+    assert _tree(out) == before

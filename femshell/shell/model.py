@@ -311,6 +311,24 @@ class ShellModel:
         """Free unknowns of the reference configuration (zero edge angles)."""
         return self.q_fixed[self.free].copy()
 
+    def from_edge_angles(self, u: np.ndarray) -> np.ndarray:
+        """Free unknowns written with edge *angles* θ (femshell before 2026-11-28, where
+        n_e = cos θ m + sin θ t×m) as this model's edge unknowns tan θ: the same mid-edge normals.
+
+        A ValueError if an angle is at or past ±π/2: that normal pointed away from its faces (a
+        spurious state, :mod:`femshell.shell.element`) and has no counterpart.
+        """
+        q = self.full(u)
+        n_pos = 3 * self.mesh.n_vertices
+        angles = q[n_pos:]
+        flipped = np.abs(angles) >= 0.5 * np.pi
+        if flipped.any():
+            raise ValueError(f"{int(flipped.sum())} edge angle(s) at or past ±π/2 (largest {np.abs(angles).max():.3g}): "
+                             "those mid-edge normals point away from their faces, a state the current element "
+                             "cannot represent; start this run afresh")
+        q[n_pos:] = np.tan(angles)
+        return q[self.free]
+
     def full(self, u: np.ndarray) -> np.ndarray:
         """All unknowns q from the free ones u."""
         q = self.q_fixed.copy()
