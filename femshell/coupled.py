@@ -1323,12 +1323,13 @@ class CoupledLoop:
         missing = [k for k in need if k not in state]
         if missing:
             raise ValueError(f"state dict lacks {', '.join(missing)}")
-        if int(state.get("version", STATE_VERSION)) > STATE_VERSION:
-            raise ValueError(f"state version {state['version']} is newer than this femshell ({STATE_VERSION})")
+        version = int(state.get("version", STATE_VERSION))
+        if version > STATE_VERSION:
+            raise ValueError(f"state version {version} is newer than this femshell ({STATE_VERSION})")
         c = np.array(state["c"], dtype=float)
         u = np.array(state["u"], dtype=float)
         # version 1 stored edge angles: read as tangents they would be other normals
-        from_angles = int(state.get("version", STATE_VERSION)) < 2
+        from_angles = version < 2
         if c.shape != (self.mesh.n_vertices,):
             raise ValueError(f"state c has shape {c.shape}, the mesh has {self.mesh.n_vertices} vertices")
         if u.shape != (self.shell.n_free,):
