@@ -230,6 +230,14 @@ def test_stops_at_ds_min_with_a_message():
     assert b.status == "ds_min"
     assert "ds_min" in b.message and "step size fell below" in b.message and "non-finite" in b.message
     assert 0.4 < b.rows[-1]["parameter"] <= 0.5
+    assert "At the last accepted point" not in b.message
+
+    class Diagnosed(Wall):             # a problem that can say what is wrong has it added to the message
+        def diagnose(self, u):
+            return f"the load is {self.lam:.3f}"
+
+    b = continuation(Diagnosed(), np.zeros(2), 0.0, ds=0.1, ds_min=1e-3, lam_stop=2.0, detect=False, log=None)
+    assert b.message.endswith(f"At the last accepted point the load is {b.rows[-1]['parameter']:.3f}")
 
 
 def test_a_parameter_the_problem_refuses_is_a_failed_step_and_the_branch_is_kept():

@@ -541,3 +541,66 @@ def test_line_search_takes_energy_and_gradient_in_one_pass_where_offered():
     assert paired_calls["both"] >= paired.iterations > 0
     assert paired_calls["energy"] + paired_calls["gradient"] + paired_calls["both"] < \
         plain_calls["energy"] + plain_calls["gradient"]
+
+
+def _hinge(fold_deg, law="svk", growth=1.0):
+    """Two triangles of a unit flat rhombus, their shared edge on the x-axis, the second face turned about
+    it by ``fold_deg``; every vertex held, so only the four edge unknowns are free."""
+    from femshell.mesh.surface import SurfaceMesh
+    from femshell.shell import Material, ShellModel
+    from femshell.shell.boundary import Prescribed
+    from femshell.shell.rest_state import RestState, metric
+
+    a = np.radians(fold_deg)
+    flat = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0]], float)
+    pts = flat.copy()
+    pts[3] = [0.5, -np.cos(a), -np.sin(a)]
+    tri = np.array([[0, 1, 2], [1, 0, 3]])
+    a0 = metric(flat, tri) * growth**2
+    return ShellModel(SurfaceMesh(pts, tri), Material(1.0, 0.3, law=law),
+                      RestState(a0, np.zeros_like(a0), np.full(2, 0.1)), [Prescribed(vertices=np.arange(4))])
+
+
+def test_a_fold_sharper_than_one_element_is_named_when_newton_fails():
+    """Past a 90° fold between two faces, θ = 0 of their edge is an energy maximum and the mid-edge normal
+    runs towards 90° without an equilibrium: stable Newton fails, and the error says where and why (the
+    shell's ``diagnose``). Below 90° the same hinge has its equilibrium and nothing to report."""
+    model = _hinge(130.0)
+    u0 = model.initial_unknowns() + 1e-3
+    with pytest.raises(NewtonError) as info:
+        minimize(model, u0, stable=True, max_iter=60, log=None)
+    msg = str(info.value)
+    assert "did not converge in 60 iterations" in msg
+    assert "1 of 5 mid-edge normals are turned by 80° or more" in msg and "(0.5, 0, 0)" in msg
+    assert "refine the mesh" in msg
+    assert model.edge_turning_angles(info.value.result.u).max() > 89.0
+
+    model = _hinge(60.0)
+    res = minimize(model, model.initial_unknowns() + 1e-3, stable=True, log=None)
+    assert res.converged and res.stable
+    assert model.edge_turning_angles(res.u).max() < 10.0
+    assert model.diagnose(res.u) is None
+
+
+def test_diagnose_names_elements_past_the_svk_ellipticity_limit():
+    """Grown by 1.3 (current/target stretch 0.77, below the SVK limit 0.806 at ν = 0.3), both SVK elements
+    have lost ellipticity; grown by 1.1 (0.91) neither has; the neo-Hookean law has no such limit."""
+    model = _hinge(0.0, growth=1.3)
+    msg = model.diagnose(model.initial_unknowns())
+    assert msg.startswith("2 elements are compressed past the stretch 0.806")
+    for other in (_hinge(0.0, growth=1.1), _hinge(0.0, law="neo-hookean", growth=1.3)):
+        assert other.diagnose(other.initial_unknowns()) is None
+
+
+class _Diagnosed(SofteningSprings):
+    def diagnose(self, u):
+        return f"spring 0 is stretched to {u[0]:.1f}" if abs(u[0]) > 1 else None
+
+
+def test_any_problem_s_diagnosis_is_appended_to_newton_s_error():
+    """The solver knows no physics: whatever problem it solves may say what is wrong with the last iterate."""
+    prob = _Diagnosed(f=[1.0, 0.5])
+    prob.load_factor = 1.5                         # past the limit load 1: no equilibrium, u[0] runs off
+    with pytest.raises(NewtonError) as info:
+        minimize(prob, np.zeros(2), max_iter=5, log=None)
+    assert str(info.value).endswith(f"At the last iterate spring 0 is stretched to {info.value.result.u[0]:.1f}")

@@ -1,11 +1,12 @@
 r"""A shell problem: mesh + material + rest state + boundary conditions + loads.
 
 Unknowns are ``q = [x.ravel(), theta]``: vertex positions (3 per vertex) and one
-rotation angle per edge. Constrained unknowns are removed; solvers see only the
-free ones, ``u = q[free]``, through :meth:`ShellModel.energy`,
-:meth:`ShellModel.gradient` and :meth:`ShellModel.hessian`, which return the
-total potential :math:`\Pi(u) = U(u) - \lambda W(u)` with load factor
-:math:`\lambda` (``model.load_factor``), its gradient and its sparse Hessian.
+rotation unknown per edge (the tangent of its mid-edge normal's turning angle).
+Constrained unknowns are removed; solvers see only the free ones, ``u = q[free]``,
+through :meth:`ShellModel.energy`, :meth:`ShellModel.gradient` and
+:meth:`ShellModel.hessian`, which return the total potential
+:math:`\Pi(u) = U(u) - \lambda W(u)` with load factor :math:`\lambda`
+(``model.load_factor``), its gradient and its sparse Hessian.
 
 Example
 -------
@@ -30,6 +31,11 @@ from . import element as el
 from .assembly import SparseAssembler
 from .boundary import rigid_body_pins
 from .rest_state import RestState
+
+
+#: a mid-edge normal turned this far (degrees) from its faces marks a fold too sharp for the mesh
+#: (:meth:`ShellModel.diagnose`); 90° is the limit the edge unknown approaches as it runs away
+FOLD_LIMIT_DEG = 80.0
 
 
 @dataclass(frozen=True)
@@ -456,6 +462,40 @@ class ShellModel:
         if self.material.law != "svk":
             return np.zeros(0, np.int64)
         return np.flatnonzero(self.material.non_elliptic(self._metric_ratio(u)))
+
+    def edge_turning_angles(self, u) -> np.ndarray:
+        """Angle (degrees, in [0, 90)) by which each edge's mid-edge normal is turned about the edge from
+        the mean normal of its faces: arctan |θ| of the edge unknown θ (:func:`element.turned_normal`)."""
+        return np.degrees(np.arctan(np.abs(self.full(u)[3 * self.mesh.n_vertices:])))
+
+    def diagnose(self, u) -> str | None:
+        """What about state u may explain a failed solve, in words, or None when nothing is found.
+
+        Newton (:func:`femshell.solvers.newton.minimize`) appends this to its error. Two checks:
+
+        * mid-edge normals turned by ``FOLD_LIMIT_DEG`` or more (:meth:`edge_turning_angles`): where the
+          two faces of an edge fold by more than 90°, θ = 0 is a maximum of that edge's bending energy
+          and its unknown runs towards 90° (θ → ∞) without an equilibrium; the mesh is too coarse for
+          the folds of this state;
+        * elements whose St Venant–Kirchhoff membrane has lost ellipticity
+          (:meth:`non_elliptic_elements`): they buckle in plane at the mesh scale.
+        """
+        found = []
+        turned = self.edge_turning_angles(u)
+        over = np.flatnonzero(turned >= FOLD_LIMIT_DEG)
+        if len(over):
+            worst = over[np.argmax(turned[over])]
+            mid = self.positions(u)[self.topology.edges[worst]].mean(axis=0)
+            found.append(f"{len(over)} of {len(turned)} mid-edge normals are turned by {FOLD_LIMIT_DEG:g}° or more "
+                         f"from their faces (largest {turned[worst]:.2f}°, at the edge through "
+                         f"({mid[0]:.4g}, {mid[1]:.4g}, {mid[2]:.4g})): the shell folds more sharply there than one "
+                         "element can carry; refine the mesh where it folds")
+        non_elliptic = self.non_elliptic_elements(u)
+        if len(non_elliptic):
+            found.append(f"{len(non_elliptic)} elements are compressed past the stretch "
+                         f"{self.material.svk_ellipticity_stretch:.3f} where the St Venant–Kirchhoff membrane loses "
+                         "ellipticity (results there depend on the mesh; Material(law=\"neo-hookean\") has no such limit)")
+        return "; ".join(found) or None
 
     def _metric_ratio(self, u) -> np.ndarray:
         """C = ā⁻¹a per element (m, 2, 2) at state u."""

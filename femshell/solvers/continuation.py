@@ -173,12 +173,15 @@ class _ModelAdapter:
         return self.model.hessian(u)
 
     def dof_weights(self):
-        """1/L² for the free position unknowns, 1 for the edge angles (L = ``length_scale``)."""
+        """1/L² for the free position unknowns, 1 for the edge unknowns (L = ``length_scale``)."""
         idx = np.flatnonzero(self.model.free)
         return np.where(idx < 3 * self.model.mesh.n_vertices, 1.0 / self.length_scale**2, 1.0)
 
     def accept(self, u):
         self.model.accept(u)
+
+    def diagnose(self, u):
+        return self.model.diagnose(u)
 
     @property
     def n_free(self):
@@ -493,6 +496,14 @@ class _Engine:
         self.counts = {"gradient": 0, "hessian": 0, "factorize": 0, "bordered_full": 0, "eigen": 0}
 
     # ---- problem access
+    def diagnose(self, P):
+        """The problem's reading of point P (``problem.diagnose``, optional; see minimize), or None."""
+        diagnose = getattr(self.p, "diagnose", None)
+        if not callable(diagnose):
+            return None
+        self.set(P.lam)
+        return diagnose(P.u)
+
     def set(self, lam):
         if lam != self._lam:
             try:
@@ -935,8 +946,9 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
                 if log:
                     log(f"    step from parameter {A.lam:.8g} failed ({reason}); ds -> {ds:.3g}")
                 if ds < ds_min:
+                    why = eng.diagnose(A)
                     stop = ("ds_min", f"step size fell below ds_min = {ds_min:.3g} at parameter {A.lam:.8g} "
-                                      f"(last failure: {reason})")
+                                      f"(last failure: {reason})" + (f". At the last accepted point {why}" if why else ""))
                     break
                 continue
             sigma_B = eng.dot(A.t_u, A.t_lam, B.u - A.u, B.lam - A.lam)

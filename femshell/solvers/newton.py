@@ -3,7 +3,9 @@ r"""Newton's method for equilibria of an energy, returning stable ones when aske
 The solver knows a *problem*: any object with ``energy(u)``, ``gradient(u)`` and
 ``hessian(u)`` (scipy sparse, symmetric), and optionally ``energy_and_gradient(u)``, both
 in one pass (the line search then tries its full step with it: a full step is usually
-taken, and its gradient is needed next). It minimises :math:`\Pi(u)`:
+taken, and its gradient is needed next), and ``diagnose(u)``, a sentence on what in a state
+may prevent an equilibrium (or None), appended to the error of a failed solve. It minimises
+:math:`\Pi(u)`:
 
 1. factorise :math:`K = \nabla^2\Pi`: Cholesky where it is positive definite, else a
    symmetric-indefinite LDLᵀ (:class:`~femshell.solvers.linear.Refactorizer`); either gives
@@ -164,14 +166,29 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
                                                          quasi_newton, times, max_step=max_step)
             if log:
                 log(f"    quasi-Newton on the held factorisation: {qn_iterations} iterations, |r| {np.linalg.norm(g):.3e}")
-        out = _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step,
-                        factorizers, log, stall, scale_from_start)
+        try:
+            out = _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step,
+                            factorizers, log, stall, scale_from_start)
+        except NewtonError as exc:
+            _explain(problem, exc)
+            raise
         out.quasi_newton_iterations = qn_iterations
         return out
     finally:
         if own:
             for f in factorizers:
                 f.free()
+
+
+def _explain(problem, exc: NewtonError):
+    """Append the problem's own reading of the last iterate to the error, where it has one: an optional
+    ``problem.diagnose(u)`` returning a sentence or None (a shell names over-folded edges, say). The
+    solver knows energies, not physics, so only the problem can say why its state has no equilibrium."""
+    diagnose = getattr(problem, "diagnose", None)
+    if callable(diagnose) and exc.result is not None:
+        why = diagnose(exc.result.u)
+        if why:
+            exc.args = (f"{exc.args[0]}. At the last iterate {why}",) + exc.args[1:]
 
 
 def check_unknowns(problem, u0) -> np.ndarray:
