@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from femshell.io import load_checkpoint, save_checkpoint
 from femshell.validation import wrinkle_scaling as ws
 from femshell.validation.disk_wrinkles import Disk
 
@@ -91,3 +92,9 @@ def test_seeded_state_resumes_from_its_checkpoint(tmp_path, monkeypatch):
         ws.seeded_state(d, 0.3, 0.1, checkpoint=ck)
     with pytest.raises(ValueError, match="modes"):
         ws.seeded_state(d, 0.2, 0.1, checkpoint=ck, modes=(8,))
+    # written before the edge unknown became a tangent (no edge_unknown in its meta): its unknowns are angles
+    state, meta = load_checkpoint(ck)
+    del meta["edge_unknown"]
+    save_checkpoint(ck, state, meta)
+    with pytest.raises(ValueError, match="edge_unknown"):
+        ws.seeded_state(d, 0.2, 0.1, checkpoint=ck)

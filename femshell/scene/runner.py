@@ -73,8 +73,6 @@ from .schema import Scene, SceneError, continuation_start, dump_toml, parse_scen
 __all__ = ["run_scene", "RunDirError", "RUN_FILES"]
 
 CHECKPOINT = "checkpoint.npz"
-#: what a checkpoint's edge unknowns are (:mod:`femshell.shell.element`); older checkpoints hold angles
-EDGE_UNKNOWN = "tangent"
 SCENE_FILE = "scene.toml"
 SERIES = "series"
 LOCK = ".femshell.lock"
@@ -466,6 +464,8 @@ class BaseRunner:
         self.last_frame_step = self.step
 
     def checkpoint(self):
+        from ..shell.element import EDGE_UNKNOWN
+
         meta = {"kind": self.kind, "edge_unknown": EDGE_UNKNOWN, "step": self.step, "series_time": self.series_time(),
                 "wall_s": self.wall_before + self.p.elapsed, "newton_total": self.newton_total,
                 "resumes": self.resumes, "setting_changes": self.setting_changes, "scene": self.scene.name,
@@ -1621,6 +1621,8 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
                               "run's mesh back, or start a new run with --overwrite or another --out")
         # before 2026-11-28 the shell's edge unknowns were angles: a time run's state says so itself (its
         # version) and is converted; a static or continuation state holds bare unknowns and is refused
+        from ..shell.element import EDGE_UNKNOWN
+
         if resume_from[1].get("edge_unknown") != EDGE_UNKNOWN and resume_from[1].get("kind") != "time":
             raise RunDirError(f"{rd.path / CHECKPOINT} was written before femshell's shell took the tangent of the "
                               "mid-edge normal's angle as its edge unknown (2026-11-28), and its state cannot be read "

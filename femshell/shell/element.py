@@ -111,6 +111,10 @@ def _unit(v):
     return v / jnp.sqrt(jnp.sum(v * v))
 
 
+#: what the edge unknowns are, for checkpoints to record: femshell before 2026-11-28 stored angles
+EDGE_UNKNOWN = "tangent"
+
+
 def turned_normal(m, t, theta):
     r""":math:`n_e = (m + \theta\, t \times m)/\sqrt{1 + \theta^2}`: m turned about the edge t by arctan θ."""
     return (m + theta * jnp.cross(t, m)) / jnp.sqrt(1.0 + theta * theta)

@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import load_checkpoint, save_checkpoint
+from ..shell.element import EDGE_UNKNOWN
 from ..solvers.linear import LinearSolverError
 from ..solvers.newton import NewtonError, minimize
 from .disk_wrinkles import Disk, warm_up
@@ -115,7 +116,8 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
 
     With ``checkpoint`` (an .npz path) the state is saved after every ε step and a run resumes from
     the last saved step (a finished state is read back, not recomputed); a checkpoint of another
-    disk, seed, seed modes or ε path is refused (ValueError naming the difference).
+    disk, seed, seed modes or ε path, or one written with edge angles (before 2026-11-28), is refused
+    (ValueError naming the difference).
     """
     modes = [int(k) for k in modes]
     z = seed_shape(disk, seed, waves, modes)
@@ -127,7 +129,8 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
     failures = 0
     n_steps = max(1, int(math.ceil(eps / eps_step - 1e-9)))
     meta = {"h": h, "R2": R, "R1": disk.R1, "n_vertices": disk.n_vertices, "n_unknowns": int(len(u)),
-            "eps": float(eps), "n_steps": n_steps, "seed": seed, "waves": waves, "dome": SEED_DOME, "modes": modes}
+            "eps": float(eps), "n_steps": n_steps, "seed": seed, "waves": waves, "dome": SEED_DOME, "modes": modes,
+            "edge_unknown": EDGE_UNKNOWN}
     done = 0
     if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
         state, saved = load_checkpoint(checkpoint)
