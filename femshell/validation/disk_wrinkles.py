@@ -96,6 +96,7 @@ from ..analysis import azimuthal_power, azimuthal_spectrum, count_wrinkles
 from ..linear_buckling import _disk_mesh
 from ..mesh.surface import SurfaceMesh
 from ..shell import Material, RestState, ShellModel
+from ..shell.model import FOLD_LIMIT_DEG
 from ..shell.rest_state import metric
 from ..solvers.continuation import ContinuationError, GrowthParameter, continuation, switch_branch
 from ..solvers.linear import factorize
@@ -483,6 +484,11 @@ def run(level, log=None):
                         float(r["relaxed"]), None, None, nv, t()))
         rows.append(Row("negative eigenvalues of the constrained Hessian at eps=0.5" + at,
                         r["n_negative_final"], 0.0, 0.0, nv, t()))
+        turned = r["disk"].model.edge_turning_angles(r["u"])
+        rows.append(Row(f"mid-edge normals turned by {FOLD_LIMIT_DEG:g} degrees or more at eps=0.5 (folds sharper "
+                        "than one element carries)" + at, int(np.sum(turned >= FOLD_LIMIT_DEG)), None, None, nv, t()))
+        rows.append(Row("largest turn of a mid-edge normal from its faces at eps=0.5 (degrees, < 90)" + at,
+                        float(turned.max()), None, None, nv, t()))
     _LAST["results"] = results
     _LAST["level"] = level
     # only stable final states have a wrinkle count (the unstable ones fail their stability row)

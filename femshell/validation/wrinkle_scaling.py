@@ -57,6 +57,7 @@ import numpy as np
 
 from ..io import load_checkpoint, save_checkpoint
 from ..shell.element import EDGE_UNKNOWN
+from ..shell.model import FOLD_LIMIT_DEG
 from ..solvers.linear import LinearSolverError
 from ..solvers.newton import NewtonError, minimize
 from .disk_wrinkles import Disk, warm_up
@@ -253,6 +254,11 @@ def run(level, out_dir=None, log=None):
                         + at, e["broadband"] / e["dome"] - 1.0, None, None, nv, wall))
         rows.append(Row("negative eigenvalues of the constrained Hessian (0: stable)" + at,
                         s["n_negative"], 0.0, 0.0, nv, wall))
+        turned = s["disk"].model.edge_turning_angles(s["u"])
+        rows.append(Row(f"mid-edge normals turned by {FOLD_LIMIT_DEG:g} degrees or more (folds sharper than one "
+                        "element carries)" + at, int(np.sum(turned >= FOLD_LIMIT_DEG)), None, None, nv, wall))
+        rows.append(Row("largest turn of a mid-edge normal from its faces (degrees, < 90)" + at,
+                        float(turned.max()), None, None, nv, wall))
     # the mesh-check states that belong to each sweep; those of the h sweep are fitted again on their own
     checks = {"h": [k for k in cfg["mesh_check"] if k[1] == EPS_FIXED],
               "eps": [k for k in cfg["mesh_check"] if k[0] == h_fixed]}
