@@ -85,3 +85,20 @@ def test_disk_loss_of_stability_where_the_branch_turns_is_a_fold():
         assert sp.bracket == (0.1, 0.10001) and np.isfinite(sp.eigenvalues).all()
         kinds.append((sp.kind, round(sp.info["mode_tangent_cosine"], 3)))
     assert kinds == [("branch", 1.0), ("fold", 1.0), ("branch", 0.0)]
+
+
+def test_disk_final_state_residual_tells_an_equilibrium_from_a_failed_relaxation():
+    """The residual row's measure: the grown flat disk is its own reference (1); the equilibrium Newton
+    reaches is below EQUILIBRIUM_RTOL; Newton stopped after two iterations is not."""
+    from femshell.solvers.newton import NewtonError, minimize
+    from femshell.validation import disk_wrinkles as dw
+
+    d = dw.Disk(2.0, 3.0, 3)
+    d.problem.set_parameter(0.05)
+    u0 = d.model.initial_unknowns()
+    assert d.relative_residual(u0, 0.05) == 1.0
+    u = minimize(d.problem, u0, log=None).u
+    assert d.relative_residual(u, 0.05) <= dw.EQUILIBRIUM_RTOL
+    with pytest.raises(NewtonError) as info:
+        minimize(d.problem, u0, max_iter=1, log=None)
+    assert d.relative_residual(info.value.result.u, 0.05) > dw.EQUILIBRIUM_RTOL

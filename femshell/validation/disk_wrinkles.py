@@ -48,8 +48,10 @@ components (:class:`~femshell.shell.ShellModel` does this for a shell without su
 3. **Final state**: if the last branch reaches ε = 0.5 unstable (or stops early), the state is
    relaxed to a stable equilibrium at ε = 0.5 by Newton with saddle escape
    (:func:`~femshell.solvers.newton.minimize`, ``stable=True``), after stepping ε to 0.5 if
-   needed; this is recorded ("relaxed"). Its stability is then checked independently: the
-   number of negative eigenvalues of the constrained Hessian there must be 0.
+   needed; this is recorded ("relaxed"). It is then checked independently: it must be an
+   equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of the flat disk's at ε = 0.5; a relaxation whose
+   Newton failed keeps its last iterate) and stable (no negative eigenvalue of the constrained
+   Hessian).
 4. **Count**: the deflection w (best-fit plane a + bX + cY removed: the pins let a free disk
    tilt) on the material circle r = ``COUNT_RADIUS`` · R2 just outside the grown region,
    :func:`femshell.analysis.count_wrinkles` (dominant Fourier mode k ≥ 2 of w(φ); 0 when the
@@ -127,6 +129,9 @@ PAPER_THIN = (0.25, 3.0, 8)
 #: the counting circle (material radius / R2) and the non-axisymmetric threshold
 COUNT_RADIUS = 1.15
 REL_TOL = 0.05
+#: a final state is an equilibrium when |∇Π(u)| <= this · |∇Π| of the flat disk at the same ε (Newton
+#: stops at 1e-9 of each step's own imbalance; a state whose Newton failed sits at ~5e-3, measured)
+EQUILIBRIUM_RTOL = 1e-6
 #: branch switches after the first one (secondary bifurcations) at most
 MAX_SWITCHES = 4
 #: continuation settings: first step and largest step in the weighted arclength, steps per branch
@@ -241,6 +246,12 @@ class Disk:
         power = sum(self.azimuthal_power(self.mode_deflection(v), (0.5, 0.85, 1.15, 1.5))
                     for v in np.atleast_2d(np.asarray(modes).T))
         return int(np.argmax(power))
+
+    def relative_residual(self, u, eps):
+        """|∇Π(u)| / |∇Π(flat)| at ε: the imbalance left in u against that of the ungrown shape."""
+        self.problem.set_parameter(eps)
+        flat = np.linalg.norm(self.model.gradient(self.model.initial_unknowns()))
+        return float(np.linalg.norm(self.model.gradient(u)) / max(flat, 1e-300))
 
     def n_negative(self, u, eps):
         """Negative eigenvalues of the constrained Hessian at (u, ε) (inertia of its LDLᵀ)."""
@@ -366,7 +377,8 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
     Returns a dict: disk, branches (list of Branch), switch_points (SpecialPoint list), folds (the
     fold SpecialPoints where the shell snapped), failed (why a switch failed, or None), first (the
     first loss of stability of the flat state or None), n_first, u, w, count, spectrum, relaxed,
-    n_negative_final, energy, wall_s.
+    n_negative_final, residual (:meth:`Disk.relative_residual` at ε = 0.5), result (a stable equilibrium: the
+    state counts), energy, wall_s.
     """
     t0 = time.perf_counter()
     log = log or _quiet
@@ -431,13 +443,16 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
                 u = exc.result.u if getattr(exc, "result", None) is not None else u
         log(f"    relaxed by stable Newton from eps = {eps:.4g} to {EPS_END}")
     n_neg = d.n_negative(u, EPS_END)
+    residual = d.relative_residual(u, EPS_END)
     w = d.deflection(u)
     out = dict(disk=d, branches=branches, switch_points=switches, folds=folds, first=first, n_first=n_first, u=u,
                failed=failed,
                stretch_first=stretch_first,
                w=w, count=d.count(w), spectrum=d.spectrum(w), relaxed=relaxed, n_negative_final=n_neg,
+               residual=residual, result=n_neg == 0 and residual <= EQUILIBRIUM_RTOL,
                energy=float(d.model.energy(u)), wall_s=time.perf_counter() - t0)
-    log(f"    eps = {EPS_END}: {out['count']} wrinkles, {n_neg} negative eigenvalues, energy {out['energy']:.8g}, "
+    log(f"    eps = {EPS_END}: {out['count']} wrinkles, {n_neg} negative eigenvalues, residual {residual:.2g} of the "
+        f"flat disk's, energy {out['energy']:.8g}, "
         f"{out['wall_s']:.0f} s")
     return out
 
@@ -465,7 +480,7 @@ def run(level, log=None):
         pc = paper_count(h, R2)
         ptxt = "" if pc is None else f" (paper: {pc})"
         first = r["first"]
-        bad = "" if r["n_negative_final"] == 0 else ", final state NOT stable: not a result"
+        bad = "" if r["result"] else ", final state NOT a stable equilibrium: not a result"
         # the paper's count is the reference, reported without a tolerance (issue 4: near, not equal)
         rows.append(Row(f"wrinkles at eps=0.5 ({cfg['law']} membrane){ptxt}{bad}" + at, r["count"], pc, None, nv, t()))
         rows.append(Row("first bifurcation eps of the flat state" + at,
@@ -484,6 +499,8 @@ def run(level, log=None):
                         float(r["relaxed"]), None, None, nv, t()))
         rows.append(Row("negative eigenvalues of the constrained Hessian at eps=0.5" + at,
                         r["n_negative_final"], 0.0, 0.0, nv, t()))
+        rows.append(Row(f"|grad| at eps=0.5 / |grad| of the flat disk there (an equilibrium: <= {EQUILIBRIUM_RTOL:g})"
+                        + at, r["residual"], 0.0, EQUILIBRIUM_RTOL, nv, t()))
         turned = r["disk"].model.edge_turning_angles(r["u"])
         rows.append(Row(f"mid-edge normals turned by {FOLD_LIMIT_DEG:g} degrees or more at eps=0.5 (folds sharper "
                         "than one element carries)" + at, int(np.sum(turned >= FOLD_LIMIT_DEG)), None, None, nv, t()))
@@ -491,8 +508,8 @@ def run(level, log=None):
                         float(turned.max()), None, None, nv, t()))
     _LAST["results"] = results
     _LAST["level"] = level
-    # only stable final states have a wrinkle count (the unstable ones fail their stability row)
-    ok = [(h, R2, r) for h, R2, r in results if r["n_negative_final"] == 0]
+    # only stable equilibria have a wrinkle count (the others fail their stability or residual row)
+    ok = [(h, R2, r) for h, R2, r in results if r["result"]]
     thick = sorted([(R2, r["count"]) for h, R2, r in ok if h == 2.0])
     counts = [c for _, c in thick]
     if len(counts) >= 2:
@@ -530,8 +547,8 @@ def plot(rows, fig):
     ax.step(r2, [paper_count(2.0, x) for x in r2], where="post", color="k", lw=1, label="paper h=2")
     ax.plot([PAPER_THIN[1]], [PAPER_THIN[2]], "k*", ms=9, label="paper h=0.25")
     for h, mk, col in ((2.0, "o", "tab:blue"), (0.25, "s", "tab:red")):
-        pts = sorted((R2, r["count"]) for hh, R2, r in results if hh == h and r["n_negative_final"] == 0)
-        bad = sorted((R2, r["count"]) for hh, R2, r in results if hh == h and r["n_negative_final"] != 0)
+        pts = sorted((R2, r["count"]) for hh, R2, r in results if hh == h and r["result"])
+        bad = sorted((R2, r["count"]) for hh, R2, r in results if hh == h and not r["result"])
         if pts:
             ax.plot(*zip(*pts), mk + "-" if len(pts) > 1 else mk, color=col, label=f"femshell h={h:g}")
         if bad:
