@@ -487,7 +487,7 @@ class ShellModel:
             worst = over[np.argmax(turned[over])]
             mid = self.positions(u)[self.topology.edges[worst]].mean(axis=0)
             found.append(f"{len(over)} of {len(turned)} mid-edge normals are turned by {FOLD_LIMIT_DEG:g}° or more "
-                         f"from their faces (largest {turned[worst]:.2f}°, at the edge through "
+                         f"from their faces (largest {turned[worst]:.2f}°, at the edge with midpoint "
                          f"({mid[0]:.4g}, {mid[1]:.4g}, {mid[2]:.4g})): the shell folds more sharply there than one "
                          "element can carry; refine the mesh where it folds")
         non_elliptic = self.non_elliptic_elements(u)
