@@ -109,6 +109,7 @@ from .chemistry import ReactionDiffusion, curvature_source
 from .geometry import element_to_vertex, mean_curvature
 from .growth import THICKNESS_MODES, contractility, element_average, stretch, target_metric, target_thickness
 from .shell import Material, RestState, ShellModel
+from .shell.model import FOLD_LIMIT_DEG
 from .solvers.linear import BACKENDS, LinearSolverError, Refactorizer
 from .solvers.newton import NewtonError, minimize
 
@@ -654,7 +655,9 @@ class StepRecord:
     fold of the quasi-static path (``TimeStepping.snap_ds``); feedback_gain : the source's
     most negative gain over the step (:func:`feedback_gain`, 1/time), which bounds the next dt;
     non_elliptic : elements whose membrane law is not elliptic (St Venant–Kirchhoff compressed
-    past its limit, :meth:`~femshell.shell.model.ShellModel.non_elliptic_elements`).
+    past its limit, :meth:`~femshell.shell.model.ShellModel.non_elliptic_elements`); over_folded :
+    edges whose mid-edge normal is turned by 80° or more from its faces, a fold sharper than one
+    element carries (:meth:`~femshell.shell.model.ShellModel.diagnose`).
     """
 
     step: int
@@ -676,6 +679,7 @@ class StepRecord:
     snapped: bool = False
     feedback_gain: float = float("nan")
     non_elliptic: int = 0
+    over_folded: int = 0
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -795,6 +799,7 @@ class CoupledLoop:
         self._update_curvature()
         if equilibrate:
             self._say_non_elliptic()
+            self._say_over_folded()
 
     # ---- helpers ------------------------------------------------------------------------------
     def _say(self, msg):
@@ -810,6 +815,13 @@ class CoupledLoop:
                       "a triangle there can collapse on the mesh scale, and Newton then stalls; "
                       "the neo-Hookean membrane (scene: material.law = \"neo-hookean\"; API: membrane_law) "
                       "stays elliptic")
+
+    def _say_over_folded(self):
+        """Log the edges of the current state folded more sharply than one element carries, if any."""
+        if self.over_folded:
+            self._say(f"  step {self.step} t = {self.t:.6g}: {self.over_folded} mid-edge normals are turned by "
+                      f"{FOLD_LIMIT_DEG:g}° or more from their faces: the shell folds there more sharply than one "
+                      "element carries, and the shape there is the mesh's; a finer mesh resolves it")
 
     def _steep_switch_hint(self, ds) -> str:
         """Why no dt meets ds_max: s(c) jumps where c crosses c* (a large b makes Λ(c) a step)."""
@@ -893,6 +905,7 @@ class CoupledLoop:
         self.H, self.H_vertex = self.growth.mean_curvature(self.u)
         self.energy = float(self.shell.strain_energy(self.u))
         self.non_elliptic = len(self.shell.non_elliptic_elements(self.u))
+        self.over_folded = int(np.sum(self.shell.edge_turning_angles(self.u) >= FOLD_LIMIT_DEG))
 
     @property
     def points(self) -> np.ndarray:
@@ -1124,10 +1137,12 @@ class CoupledLoop:
         self.newton_total += res.iterations
         self._last_stable = res.stable
         self._last_ds = ds
-        was_elliptic = self.non_elliptic == 0
+        was_elliptic, was_resolved = self.non_elliptic == 0, self.over_folded == 0
         self._update_curvature()
         if was_elliptic:
             self._say_non_elliptic()
+        if was_resolved:
+            self._say_over_folded()
         self._follow_stationarity(c_old, x_old, h)
         self.dt = self._next_dt(h, ds, cuts, c_old, source)
         rec = self.record(dt=h, cuts=cuts, wall_s=time.perf_counter() - wall0, snapped=snapped)
@@ -1193,7 +1208,7 @@ class CoupledLoop:
                           n_spots=int(n_spots), rate_c=float(self._last_rates[0]),
                           rate_x=float(self._last_rates[1]), stable=self._last_stable, wall_s=float(wall_s),
                           snapped=bool(snapped), feedback_gain=float(self._last_gain),
-                          non_elliptic=int(self.non_elliptic))
+                          non_elliptic=int(self.non_elliptic), over_folded=int(self.over_folded))
 
     # ---- loops --------------------------------------------------------------------------------
     def iterate(self, max_steps: int | None = None):

@@ -222,6 +222,7 @@ def test_spot_makes_an_outward_bulge_that_feeds_itself(ball, spot_run):
     assert np.all(loop.c >= 0) and np.all(np.isfinite(loop.u))
     assert all(r.stable for r in records) and all(r.n_spots == 1 for r in records)
     assert records[-1].non_elliptic == int(np.sum(loop.shell.membrane_ellipticity(loop.u) < 0)) == 0
+    assert records[-1].over_folded == 0 and loop.shell.edge_turning_angles(loop.u).max() < 80.0
     assert [r.step for r in records] == [1, 2, 3]
     assert all(r.ds <= st.ds_max * (1 + 1e-12) for r in records)
     assert records[-1].t == pytest.approx(sum(r.dt for r in records), rel=1e-14)

@@ -780,6 +780,7 @@ class TimeRunner(BaseRunner):
                 "min_H": float(lp.H_vertex.min()), "energy": lp.energy, "max_stretch": float(lp.s.max()),
                 "radius_min": float(r.min()), "radius_max": float(r.max()), "rejected_steps": lp.n_rejected,
                 "snaps": lp.n_snaps, "non_elliptic_elements": int(lp.non_elliptic),
+                "over_folded_edges": int(lp.over_folded),
                 "stationary": bool(lp.is_stationary), "stationary_reason": lp.stationary_reason,
                 "c_max_theory": lp.params.c_max, "pattern": pattern}
 
@@ -796,6 +797,9 @@ class TimeRunner(BaseRunner):
             lines.append(f"{fin['non_elliptic_elements']} elements are compressed past the St Venant–Kirchhoff "
                          "ellipticity limit: the shape there depends on the mesh (material.law = \"neo-hookean\" "
                          "stays elliptic)")
+        if fin.get("over_folded_edges"):
+            lines.append(f"{fin['over_folded_edges']} mid-edge normals are turned by 80° or more from their faces: "
+                         "the shell folds there more sharply than one element carries (a finer mesh resolves it)")
         return lines
 
     def pictures(self):
