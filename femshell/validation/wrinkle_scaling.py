@@ -202,10 +202,11 @@ def fit_exponent(x, n):
     return float(coef[1]), float(math.sqrt(cov[1, 1]))
 
 
-def measure(h, eps, resolution, eps_step, checkpoints=None):
+def measure(h, eps, resolution, eps_step, checkpoints=None, log=None):
     """One state: Disk(h, R2); stable states from the dome alone and from the broadband seed; the one of
     lower energy is the measured state (its rim wavenumber and amplitude, stability). ``checkpoints``:
     a directory for the two starts' checkpoints (:func:`seeded_state`)."""
+    log = log or (lambda *a, **k: None)
     d = Disk(h, R2, resolution)
     starts = {}
     for name, waves in (("dome", 0.0), ("broadband", SEED_WAVES)):
@@ -214,10 +215,15 @@ def measure(h, eps, resolution, eps_step, checkpoints=None):
         w = d.deflection(u)
         n, rel = rim_wavenumber(d, w)
         starts[name] = dict(u=u, w=w, n=n, rel=rel, failures=failures, energy=float(d.model.energy(u)))
-    best = min(starts, key=lambda k: starts[k]["energy"])
+    best = min(starts, key=lambda k: starts[k]["energy"] if math.isfinite(starts[k]["energy"]) else math.inf)
     s = dict(starts[best], disk=d, start=best, starts=starts)
     turned = d.model.edge_turning_angles(s["u"])
-    s.update(n_negative=d.n_negative(s["u"], eps), residual=d.relative_residual(s["u"], eps),
+    try:
+        n_negative = d.n_negative(s["u"], eps)
+    except LinearSolverError as exc:    # a collapsed state (measured: a start whose every step failed) has
+        n_negative = None               # no finite Hessian; it is no result, and the row says why
+        log(f"  h={h:g} eps={eps:g}: stability not decided: {exc}")
+    s.update(n_negative=n_negative, residual=d.relative_residual(s["u"], eps),
              over_folded=int(np.sum(turned >= FOLD_LIMIT_DEG)), largest_turn=float(turned.max()),
              wrinkled=s["rel"] >= REL_TOL)
     s["result"] = s["n_negative"] == 0 and s["residual"] <= EQUILIBRIUM_RTOL and s["over_folded"] == 0
@@ -241,7 +247,7 @@ def run(level, out_dir=None, log=None):
         if key in states:
             continue
         with timed() as t:
-            s = measure(*key, cfg["eps_step"], checkpoints)
+            s = measure(*key, cfg["eps_step"], checkpoints, log=log)
         s["wall_s"] = t()
         states[key] = s
         log(f"  h={key[0]:g} eps={key[1]:g} resolution {key[2]}: {s['disk'].n_vertices} vertices; "
@@ -258,8 +264,9 @@ def run(level, out_dir=None, log=None):
         e = {k: v["energy"] for k, v in s["starts"].items()}
         rows.append(Row("energy from the broadband seed / energy from the dome alone - 1 (the lower is measured)"
                         + at, e["broadband"] / e["dome"] - 1.0, None, None, nv, wall))
-        rows.append(Row("negative eigenvalues of the constrained Hessian (0: stable)" + at,
-                        s["n_negative"], 0.0, 0.0, nv, wall))
+        rows.append(Row("negative eigenvalues of the constrained Hessian (0: stable)" + at
+                        + ("" if s["n_negative"] is not None else ": not decided, the Hessian is not finite"),
+                        math.nan if s["n_negative"] is None else s["n_negative"], 0.0, 0.0, nv, wall))
         rows.append(Row(f"|grad| / |grad| of the flat disk at the same eps (an equilibrium: <= {EQUILIBRIUM_RTOL:g})"
                         + at, s["residual"], 0.0, EQUILIBRIUM_RTOL, nv, wall))
         rows.append(Row(f"mid-edge normals turned by {FOLD_LIMIT_DEG:g} degrees or more (0: the mesh carries the "
