@@ -798,8 +798,11 @@ class TimeRunner(BaseRunner):
                          "ellipticity limit: the shape there depends on the mesh (material.law = \"neo-hookean\" "
                          "stays elliptic)")
         if fin.get("over_folded_edges"):
-            lines.append(f"{fin['over_folded_edges']} mid-edge normals are turned by 80° or more from their faces: "
-                         "the shell folds there more sharply than one element carries (a finer mesh resolves it)")
+            from ..shell.model import FOLD_LIMIT_DEG
+
+            lines.append(f"{fin['over_folded_edges']} mid-edge normals are turned by {FOLD_LIMIT_DEG:g}° or more from "
+                         "their faces: the shell folds there more sharply than one element carries (a finer mesh "
+                         "resolves it)")
         return lines
 
     def pictures(self):
