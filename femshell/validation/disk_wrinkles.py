@@ -279,7 +279,7 @@ LOCATE_RTOL = 1e-4
 #: at most this many critical modes are computed at a loss of stability
 MAX_MODES = 6
 #: a loss of stability where dλ/ds changes sign is a fold when its critical mode is this parallel to the
-#: branch (|cosine| in the arclength norm; measured 0.99987 at the h = 0.25 dome's fold)
+#: branch (|cosine| in the arclength norm; measured 0.99987 at the h = 0.25 dome's fold on resolution 8)
 FOLD_COSINE = 0.9
 
 

@@ -36,17 +36,16 @@ and −1/4 with no tolerance (the paper's exponents are for a spring network's f
 wrinkles; ours is a measurement); with fewer than two wrinkled states of distinct h (or ε) there is
 no exponent row, and the row counting the wrinkled states says so.
 
-Measured (full level, R2 = 3, resolution 18 = 3 318 vertices, 5-40 min per state; re-run on
-2026-11-27; table and reading in docs/disk-crosscheck.md): the stable states are domes whose rim
-carries a non-axisymmetric part of 8-11 % of their height. At ε = 0.5, n = 3, 6, 4 for h = 0.25, 0.35,
-0.5 and no wrinkle at h = 1 (fitted exponent −0.12 ± 1.2 against 1/2); at h = 0.25, n = 3, 4, 3 for
-ε = 0.3, 0.4, 0.5 (−0.07 ± 0.77 against −1/4). The other start ends 0.03-1.9 % higher in energy, at a
-different n in six of the seven wrinkled states; on the coarser mesh (resolution 12) n is two higher
-at h = 0.25 and one lower at 0.5. The run of 2026-11-24, before the Newton changes of 2026-11-25/26,
-had n = 4, 6, 3 and 5, 4, 4 (exponents 0.17 ± 1.2 and +0.47 ± 0.20), and a reinstall of the
-dependencies had changed the resolution-12 n at h = 0.25 from 6 to 5 (runs repeat bit for bit within
-one installation). n is decided by the path to within ±1-2, not by h and ε: this is not a wrinkle
-wavelength one can fit a scaling law to.
+Measured (full level, R2 = 3, resolution 18 = 3 318 vertices, 2-8 min per start; re-run on 2026-11-28
+with the tangent edge unknown; table and reading in docs/disk-crosscheck.md): of the six states of the
+sweeps, four are results. At h = 0.25, ε = 0.3 and 0.4 the rim carries n = 5 lobes (11 % of the dome);
+at ε = 0.5, h = 0.5 has n = 3 (13.5 %), h = 1 none (0.4 %). At h = 0.25 and 0.35, ε = 0.5, both starts
+end with mid-edge normals at the 90° limit (8 and 15 edges past 80°; residuals 5.6e-3 and 1.1e-5 of the
+flat disk's): the inclusion folds more sharply than this mesh carries. So the h sweep has one wrinkled
+result (no exponent) and the ε sweep two at the same n (exponent 0 ± 0.28 against −1/4). Neither
+resolution-12 check is a result. The run of 2026-11-27 (n = 3, 6, 4 against h, every state stable) used
+the angle edge unknown, which can flip normals (5 flipped edges measured in its resolution-12 broadband
+start), and its rows tested the inertia only.
 """
 
 from __future__ import annotations
@@ -297,7 +296,8 @@ def run(level, out_dir=None, log=None):
 
 def plot(rows, fig):
     """λ against h and ε (wrinkled states filled, the others hollow at their dominant n; grey: not a result, as
-    unstable, unconverged or over-folded), and top views of the non-axisymmetric part of w for the thinnest state."""
+    unstable, unconverged or over-folded), and a top view of the non-axisymmetric part of w of the thinnest
+    state that is a result."""
     states = _LAST.get("states", {})
     if not states:
         return
@@ -310,7 +310,7 @@ def plot(rows, fig):
             ax.loglog([x], [2 * math.pi * R2 / s["n"]], "o", color=col, mfc=col if s["wrinkled"] else "none")
         for i, k in enumerate(_LAST["checks"][var]):       # the same state on the other mesh
             ax.loglog([k[0] if var == "h" else k[1]], [2 * math.pi * R2 / states[k]["n"]], "x",
-                      color="tab:red", label=None if i else f"resolution {k[2]}")
+                      color="tab:red" if states[k]["result"] else "tab:gray", label=None if i else f"resolution {k[2]}")
         xs = np.array(sorted({k[0] if var == "h" else k[1] for k, _ in sel}))
         if len(xs):
             ref = 2 * math.pi * R2 / max(s["n"] for _, s in sel)
@@ -322,7 +322,8 @@ def plot(rows, fig):
         ax.legend(fontsize=6)
         ax.grid(True, which="both", alpha=0.3)
     swept = {k: states[k] for var in ("h", "eps") for k in _LAST["sweeps"][var]}
-    (h, eps, res), s = min(swept.items(), key=lambda kv: (kv[0][0], -kv[0][1]))
+    # the thinnest, most grown state that is a result (else the thinnest of all, so marked)
+    (h, eps, res), s = min(swept.items(), key=lambda kv: (not kv[1]["result"], kv[0][0], -kv[0][1]))
     d = s["disk"]
     P = d.points
     r = np.hypot(P[:, 0], P[:, 1])
@@ -336,5 +337,6 @@ def plot(rows, fig):
     ax3.set_xlim(-lim, lim)
     ax3.set_ylim(-lim, lim)
     ax3.set_aspect("equal")
-    ax3.set_title(f"h={h:g} eps={eps:g} resolution {res}: w minus ring mean", fontsize=7)
+    ax3.set_title(f"h={h:g} eps={eps:g} resolution {res}: w minus ring mean"
+                  + ("" if s["result"] else " (not a result)"), fontsize=7)
     fig.colorbar(tpc, ax=ax3, fraction=0.046, pad=0.02).ax.tick_params(labelsize=5)
