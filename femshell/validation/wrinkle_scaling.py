@@ -177,9 +177,7 @@ def seeded_sample(h, eps, resolution, seed=SEED, waves=SEED_WAVES, modes=SEED_MO
 def rim_wavenumber(disk, w, radii=RIM_RADII, k_max=24):
     """Dominant azimuthal wavenumber k ≥ 2 of w on circles r = radii · R2 and its amplitude relative to
     the axisymmetric part (root of the summed powers). Returns (n, relative amplitude)."""
-    power = disk.azimuthal_power(w, radii, k_max)
-    n = 2 + int(np.argmax(power[2:]))
-    return n, float(math.sqrt(power[n] / max(power[0], 1e-300)))
+    return disk.rim_mode(w, radii, k_max)
 
 
 def fit_exponent(x, n):
