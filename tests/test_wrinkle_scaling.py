@@ -28,6 +28,13 @@ def test_rim_wavenumber_of_a_dome_with_k_waves(disk, k):
     expect = math.sqrt(np.sum((0.2 * np.exp(-(((rr - ws.R2) / 1.5) ** 2))) ** 2) / np.sum(np.exp(-((rr / ws.R2) ** 2)) ** 2))
     # P1 interpolation (edge 0.3, 7 waves: ~9 edges per wave): a few per cent
     assert rel == pytest.approx(expect, rel=0.1)
+    # disk-wrinkles' inside-rim measure is the same on its own circles
+    from femshell.validation.disk_wrinkles import INNER_RIM_RADII
+
+    k_in, rel_in = disk.rim_mode(dome + 0.2 * band * np.cos(k * phi))
+    rr = np.array(INNER_RIM_RADII) * ws.R2
+    expect = math.sqrt(np.sum((0.2 * np.exp(-(((rr - ws.R2) / 1.5) ** 2))) ** 2) / np.sum(np.exp(-((rr / ws.R2) ** 2)) ** 2))
+    assert k_in == k and rel_in == pytest.approx(expect, rel=0.1)
     # an axisymmetric dome has no rim wave
     assert ws.rim_wavenumber(disk, dome)[1] < 1e-2
 

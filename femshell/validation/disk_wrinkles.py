@@ -105,7 +105,7 @@ from ..shell import Material, RestState, ShellModel
 from ..shell.model import FOLD_LIMIT_DEG
 from ..shell.rest_state import metric
 from ..solvers.continuation import ContinuationError, GrowthParameter, continuation, switch_branch
-from ..solvers.linear import factorize
+from ..solvers.linear import LinearSolverError, factorize
 from ..solvers.newton import NewtonError, minimize
 from .framework import Row, timed
 
@@ -395,8 +395,8 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
     fold SpecialPoints where the shell snapped), failed (why a switch failed, or None), first (the
     first loss of stability of the flat state or None), n_first, u, w, count, spectrum, rim
     (:meth:`Disk.rim_mode`), relaxed,
-    n_negative_final, residual (:meth:`Disk.relative_residual` at ε = 0.5), result (a stable equilibrium: the
-    state counts), energy, wall_s.
+    n_negative_final (None when the Hessian is not finite), residual (:meth:`Disk.relative_residual` at
+    ε = 0.5), over_folded, largest_turn, result (a resolved stable equilibrium: the state counts), energy, wall_s.
     """
     t0 = time.perf_counter()
     log = log or _quiet
@@ -460,7 +460,11 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
                 log(f"    stable Newton failed at eps = {e:.4g}: {exc}")
                 u = exc.result.u if getattr(exc, "result", None) is not None else u
         log(f"    relaxed by stable Newton from eps = {eps:.4g} to {EPS_END}")
-    n_neg = d.n_negative(u, EPS_END)
+    try:
+        n_neg = d.n_negative(u, EPS_END)
+    except LinearSolverError as exc:     # a collapsed state has no finite Hessian: no result, say why
+        n_neg = None
+        log(f"    stability at eps = {EPS_END} not decided: {exc}")
     residual = d.relative_residual(u, EPS_END)
     turned = d.model.edge_turning_angles(u)
     over_folded = int(np.sum(turned >= FOLD_LIMIT_DEG))
@@ -522,8 +526,10 @@ def run(level, log=None):
                         None, None, nv, t()))
         rows.append(Row("final state relaxed by stable Newton (1) or reached on a branch (0)" + at,
                         float(r["relaxed"]), None, None, nv, t()))
-        rows.append(Row("negative eigenvalues of the constrained Hessian at eps=0.5" + at,
-                        r["n_negative_final"], 0.0, 0.0, nv, t()))
+        undecided = r["n_negative_final"] is None
+        rows.append(Row("negative eigenvalues of the constrained Hessian at eps=0.5" + at
+                        + (": not decided, the Hessian is not finite" if undecided else ""),
+                        math.nan if undecided else r["n_negative_final"], 0.0, 0.0, nv, t()))
         rows.append(Row(f"|grad| at eps=0.5 / |grad| of the flat disk there (an equilibrium: <= {EQUILIBRIUM_RTOL:g})"
                         + at, r["residual"], 0.0, EQUILIBRIUM_RTOL, nv, t()))
         rows.append(Row(f"mid-edge normals turned by {FOLD_LIMIT_DEG:g} degrees or more at eps=0.5 (0: the mesh "
