@@ -505,7 +505,7 @@ def run(level, log=None):
         pc = paper_count(h, R2)
         ptxt = "" if pc is None else f" (paper: {pc})"
         first = r["first"]
-        bad = "" if r["result"] else ", final state NOT a stable equilibrium: not a result"
+        bad = "" if r["result"] else ", final state NOT a resolved stable equilibrium: not a result"
         # the paper's count is the reference, reported without a tolerance (issue 4: near, not equal)
         rows.append(Row(f"wrinkles at eps=0.5 ({cfg['law']} membrane){ptxt}{bad}" + at, r["count"], pc, None, nv, t()))
         rim = f"on r = {INNER_RIM_RADII[0]:g}-{INNER_RIM_RADII[-1]:g} R2, inside the rim"
@@ -538,7 +538,7 @@ def run(level, log=None):
                         r["largest_turn"], None, None, nv, t()))
     _LAST["results"] = results
     _LAST["level"] = level
-    # only stable equilibria have a wrinkle count (the others fail their stability or residual row)
+    # only resolved stable equilibria have a wrinkle count (the others fail a toleranced row)
     ok = [(h, R2, r) for h, R2, r in results if r["result"]]
     thick = sorted([(R2, r["count"]) for h, R2, r in ok if h == 2.0])
     counts = [c for _, c in thick]
