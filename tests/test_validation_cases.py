@@ -89,7 +89,7 @@ def test_disk_loss_of_stability_where_the_branch_turns_is_a_fold():
 
 def test_disk_final_state_residual_tells_an_equilibrium_from_a_failed_relaxation():
     """The residual row's measure: the grown flat disk is its own reference (1); the equilibrium Newton
-    reaches is below EQUILIBRIUM_RTOL; Newton stopped after two iterations is not."""
+    reaches is below EQUILIBRIUM_RTOL; Newton stopped after one iteration is not."""
     from femshell.solvers.newton import NewtonError, minimize
     from femshell.validation import disk_wrinkles as dw
 
