@@ -905,7 +905,7 @@ class CoupledLoop:
         self.H, self.H_vertex = self.growth.mean_curvature(self.u)
         self.energy = float(self.shell.strain_energy(self.u))
         self.non_elliptic = len(self.shell.non_elliptic_elements(self.u))
-        self.over_folded = int(np.sum(self.shell.edge_turning_angles(self.u) >= FOLD_LIMIT_DEG))
+        self.over_folded = len(self.shell.over_folded_edges(self.u))
 
     @property
     def points(self) -> np.ndarray:

@@ -468,12 +468,17 @@ class ShellModel:
         the mean normal of its faces: arctan |θ| of the edge unknown θ (:func:`element.turned_normal`)."""
         return np.degrees(np.arctan(np.abs(self.full(u)[3 * self.mesh.n_vertices:])))
 
+    def over_folded_edges(self, u) -> np.ndarray:
+        """Indices of the edges whose mid-edge normal is turned by ``FOLD_LIMIT_DEG`` or more from its faces
+        (:meth:`edge_turning_angles`): folds sharper than one element carries (:meth:`diagnose`)."""
+        return np.flatnonzero(self.edge_turning_angles(u) >= FOLD_LIMIT_DEG)
+
     def diagnose(self, u) -> str | None:
         """What about state u may explain a failed solve, in words, or None when nothing is found.
 
         Newton (:func:`femshell.solvers.newton.minimize`) appends this to its error. Two checks:
 
-        * mid-edge normals turned by ``FOLD_LIMIT_DEG`` or more (:meth:`edge_turning_angles`): where the
+        * mid-edge normals turned by ``FOLD_LIMIT_DEG`` or more (:meth:`over_folded_edges`): where the
           two faces of an edge fold by more than 90°, θ = 0 is a maximum of that edge's bending energy
           and its unknown runs towards 90° (θ → ∞) without an equilibrium; the mesh is too coarse for
           the folds of this state;
@@ -481,9 +486,9 @@ class ShellModel:
           (:meth:`non_elliptic_elements`): they buckle in plane at the mesh scale.
         """
         found = []
-        turned = self.edge_turning_angles(u)
-        over = np.flatnonzero(turned >= FOLD_LIMIT_DEG)
+        over = self.over_folded_edges(u)
         if len(over):
+            turned = self.edge_turning_angles(u)
             worst = over[np.argmax(turned[over])]
             mid = self.positions(u)[self.topology.edges[worst]].mean(axis=0)
             found.append(f"{len(over)} of {len(turned)} mid-edge normals are turned by {FOLD_LIMIT_DEG:g}° or more "

@@ -270,6 +270,23 @@ class Disk:
         flat = np.linalg.norm(self.model.gradient(self.model.initial_unknowns()))
         return float(np.linalg.norm(self.model.gradient(u)) / max(flat, 1e-300))
 
+    def final_check(self, u, eps, log=None):
+        """Whether state u at ε counts as a result (module docstring, step 3): a dict of n_negative (None, and
+        a line in ``log``, when the Hessian is not finite), residual (:meth:`relative_residual`), over_folded
+        (:meth:`~femshell.shell.ShellModel.over_folded_edges`), largest_turn (degrees) and result (a resolved
+        stable equilibrium)."""
+        try:
+            n_negative = self.n_negative(u, eps)
+        except LinearSolverError as exc:     # a collapsed state has no finite Hessian: no result, say why
+            n_negative = None
+            if log:
+                log(f"    stability at eps = {eps:g} not decided: {exc}")
+        residual = self.relative_residual(u, eps)
+        over_folded = len(self.model.over_folded_edges(u))
+        return dict(n_negative=n_negative, residual=residual, over_folded=over_folded,
+                    largest_turn=float(self.model.edge_turning_angles(u).max()),
+                    result=n_negative == 0 and residual <= EQUILIBRIUM_RTOL and over_folded == 0)
+
     def n_negative(self, u, eps):
         """Negative eigenvalues of the constrained Hessian at (u, ε) (inertia of its LDLᵀ)."""
         self.problem.set_parameter(eps)
@@ -460,24 +477,16 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk"):
                 log(f"    stable Newton failed at eps = {e:.4g}: {exc}")
                 u = exc.result.u if getattr(exc, "result", None) is not None else u
         log(f"    relaxed by stable Newton from eps = {eps:.4g} to {EPS_END}")
-    try:
-        n_neg = d.n_negative(u, EPS_END)
-    except LinearSolverError as exc:     # a collapsed state has no finite Hessian: no result, say why
-        n_neg = None
-        log(f"    stability at eps = {EPS_END} not decided: {exc}")
-    residual = d.relative_residual(u, EPS_END)
-    turned = d.model.edge_turning_angles(u)
-    over_folded = int(np.sum(turned >= FOLD_LIMIT_DEG))
+    check = d.final_check(u, EPS_END, log=log)
+    n_neg = check.pop("n_negative")
     w = d.deflection(u)
     out = dict(disk=d, branches=branches, switch_points=switches, folds=folds, first=first, n_first=n_first, u=u,
                failed=failed,
                stretch_first=stretch_first,
                w=w, count=d.count(w), spectrum=d.spectrum(w), rim=d.rim_mode(w), relaxed=relaxed,
-               n_negative_final=n_neg,
-               residual=residual, over_folded=over_folded, largest_turn=float(turned.max()),
-               result=n_neg == 0 and residual <= EQUILIBRIUM_RTOL and over_folded == 0,
+               n_negative_final=n_neg, **check,
                energy=float(d.model.energy(u)), wall_s=time.perf_counter() - t0)
-    log(f"    eps = {EPS_END}: {out['count']} wrinkles, {n_neg} negative eigenvalues, residual {residual:.2g} of the "
+    log(f"    eps = {EPS_END}: {out['count']} wrinkles, {n_neg} negative eigenvalues, residual {out['residual']:.2g} of the "
         f"flat disk's, energy {out['energy']:.8g}, "
         f"{out['wall_s']:.0f} s")
     return out

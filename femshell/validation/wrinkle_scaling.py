@@ -214,16 +214,9 @@ def measure(h, eps, resolution, eps_step, checkpoints=None, log=None):
         starts[name] = dict(u=u, w=w, n=n, rel=rel, failures=failures, energy=float(d.model.energy(u)))
     best = min(starts, key=lambda k: starts[k]["energy"] if math.isfinite(starts[k]["energy"]) else math.inf)
     s = dict(starts[best], disk=d, start=best, starts=starts)
-    turned = d.model.edge_turning_angles(s["u"])
-    try:
-        n_negative = d.n_negative(s["u"], eps)
-    except LinearSolverError as exc:    # a collapsed state (measured: a start whose every step failed) has
-        n_negative = None               # no finite Hessian; it is no result, and the row says why
-        log(f"  h={h:g} eps={eps:g}: stability not decided: {exc}")
-    s.update(n_negative=n_negative, residual=d.relative_residual(s["u"], eps),
-             over_folded=int(np.sum(turned >= FOLD_LIMIT_DEG)), largest_turn=float(turned.max()),
-             wrinkled=s["rel"] >= REL_TOL)
-    s["result"] = s["n_negative"] == 0 and s["residual"] <= EQUILIBRIUM_RTOL and s["over_folded"] == 0
+    # a collapsed start (measured: one whose every step failed) has no finite Hessian: no result, and the
+    # stability row says why
+    s.update(d.final_check(s["u"], eps, log=lambda m: log(f"  h={h:g}:{m}")), wrinkled=s["rel"] >= REL_TOL)
     return s
 
 
