@@ -18,7 +18,7 @@ MESH_OPTIONS = {"radius": ("sphere", "disk", "cylinder", "hemisphere"), "inner_r
                 "outer_radius": ("annulus",), "vertices": ("sphere", "disk", "hemisphere"),
                 "edge_length": MESH_KINDS, "inner_edge_length": ("disk",), "length": ("plate", "strip", "cylinder"),
                 "width": ("plate", "strip"), "angle": ("cylinder",), "hole_angle": ("hemisphere",),
-                "slit": ("annulus",)}
+                "slit": ("annulus",), "refine_inside": ("disk",)}
 
 
 def _positive(name):
@@ -65,6 +65,8 @@ def _parser():
                    help="cylinder: panel angle range in degrees")
     m.add_argument("--hole-angle", type=float, help="hemisphere: polar hole half-angle in degrees")
     m.add_argument("--slit", action="store_true", help="annulus: cut along the positive x-axis")
+    m.add_argument("--refine-inside", action="store_true",
+                   help="disk: the inner edge length over the whole inner disk, not only near the circle")
     m.add_argument("--seed", type=int, default=0)
 
     v = sub.add_parser("validate", help="run validation cases; exit 0 only if every toleranced row passes",
@@ -157,7 +159,8 @@ def _cmd_mesh(args):
             kw["hole_angle"] = math.radians(args.hole_angle)
     elif args.kind == "disk":
         kw.update(radius=args.radius or 1.0, edge_length=args.edge_length, n_vertices=args.vertices,
-                  inner_radius=args.inner_radius, inner_edge_length=args.inner_edge_length)
+                  inner_radius=args.inner_radius, inner_edge_length=args.inner_edge_length,
+                  refine_inside=args.refine_inside)
     elif args.kind in ("plate", "strip"):
         lx, ly = args.length or 1.0, args.width or (1.0 if args.kind == "plate" else 0.1)
         kw.update(edge_length=args.edge_length or min(lx, ly) / 10)

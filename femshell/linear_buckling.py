@@ -778,8 +778,9 @@ def critical_growth_strain(R1, R2, h, g0=0.5, nu=0.5, E=1.0, thin_grown=True, bc
                           wall_s=time.perf_counter() - t0)
 
 
-def _disk_mesh(R1, R2, resolution=8, edge_length=None, inner_edge_length=None, seed=0):
-    """(points (n, 2), triangles) of a disk of radius R1 with the circle R2 in its edges."""
+def _disk_mesh(R1, R2, resolution=8, edge_length=None, inner_edge_length=None, seed=0, refine_inside=False):
+    """(points (n, 2), triangles) of a disk of radius R1 with the circle R2 in its edges (``refine_inside``:
+    the whole inner disk at the inner edge length, :func:`femshell.mesh.generators.disk`)."""
     from .mesh import generators
 
     if inner_edge_length is None:
@@ -787,7 +788,8 @@ def _disk_mesh(R1, R2, resolution=8, edge_length=None, inner_edge_length=None, s
     if edge_length is None:
         edge_length = min(max(4.0 * R2 / resolution, R1 / 25.0), R1 / 5.0)
     m = generators.disk(R1, edge_length=edge_length, inner_radius=R2,
-                        inner_edge_length=min(inner_edge_length, edge_length), seed=seed)
+                        inner_edge_length=min(inner_edge_length, edge_length), seed=seed,
+                        refine_inside=refine_inside)
     return np.asarray(m.points)[:, :2].copy(), np.asarray(m.triangles)
 
 

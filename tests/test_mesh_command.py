@@ -57,6 +57,10 @@ def test_disk_command_has_inner_circle(tmp_path):
     # ranges that read as they are checked
     (["mesh", "sphere", "--radius", "inf", "-o", "x.vtu"], "radius must be in [1e-06, 100000]"),
     (["mesh", "disk", "--inner-radius", "1", "-o", "x.vtu"], "inner_radius must be in (0, 1), got 1.0"),
+    (["mesh", "disk", "--inner-radius", "0.5", "--refine-inside", "-o", "x.vtu"],
+     "refine_inside needs inner_edge_length"),
+    (["mesh", "annulus", "--inner-radius", "1", "--outer-radius", "2", "--refine-inside", "-o", "x.vtu"],
+     "--refine-inside does not apply to annulus"),
     (["mesh", "annulus", "--inner-radius", "1", "--outer-radius", "1.0000001", "-o", "x.vtu"],
      "too slender to mesh: edges must be at most the ring width outer_radius - inner_radius (1e-07)"),
 ])

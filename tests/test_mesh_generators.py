@@ -121,6 +121,27 @@ def test_disk_inner_circle_conforms_and_is_refined():
     assert_segments_run_with_surface_on_left(m, ["outer"])
 
 
+def test_disk_refined_inside_has_the_inner_edge_length_across_the_inner_disk():
+    R, r, h, hi = 10.0, 3.0, 1.0, 0.25
+    band = disk(radius=R, edge_length=h, inner_radius=r, inner_edge_length=hi)
+    m = disk(radius=R, edge_length=h, inner_radius=r, inner_edge_length=hi, refine_inside=True)
+    assert_valid(m, 1, ["outer", "inner"])
+    assert "refine_inside" in m.name and "refine_inside" not in band.name
+
+    def lengths(mesh, lo, hi_):
+        e = mesh.topology.edges
+        mid = np.hypot(*(0.5 * (mesh.points[e[:, 0]] + mesh.points[e[:, 1]]))[:, :2].T)
+        sel = (mid > lo) & (mid < hi_)
+        return np.linalg.norm(mesh.points[e[sel, 0]] - mesh.points[e[sel, 1]], axis=1).mean()
+
+    # at the centre, 3 away from the circle: the band-only mesh has grown to about 0.25 + 0.3 (3 - 0.25)
+    assert lengths(m, 0.0, 1.0) == pytest.approx(hi, rel=0.2)
+    assert lengths(band, 0.0, 1.0) > 2.5 * hi
+    # along the circle both are refined alike, and far outside both reach the outer size
+    assert lengths(m, r - 0.2, r + 0.2) == pytest.approx(lengths(band, r - 0.2, r + 0.2), rel=0.15)
+    assert lengths(m, 8.5, 9.5) == pytest.approx(h, rel=0.25)
+
+
 def test_disk_inner_circle_without_refinement():
     m = disk(radius=1.0, edge_length=0.1, inner_radius=0.5)
     assert_valid(m, 1, ["outer", "inner"])
@@ -362,6 +383,7 @@ def test_reuses_a_running_gmsh_session():
     (lambda: disk(inner_radius=2.0), "inner_radius"),
     (lambda: disk(inner_radius=1.0), "inner_radius"),
     (lambda: disk(inner_edge_length=0.01), "inner_radius"),
+    (lambda: disk(inner_radius=0.5, refine_inside=True), "inner_edge_length"),
     (lambda: disk(edge_length=0.1, inner_radius=0.5, inner_edge_length=0.2), "inner_edge_length"),
     (lambda: plate(lx=0.0), "lx"),
     (lambda: plate(ly=-1.0), "ly"),

@@ -373,7 +373,7 @@ def sphere(radius=1.0, n_vertices=None, edge_length=None, seed=0) -> SurfaceMesh
 
 
 def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner_edge_length=None,
-         seed=0) -> SurfaceMesh:
+         seed=0, refine_inside=False) -> SurfaceMesh:
     """Flat disk of radius ``radius`` in the plane z = 0, centred at the origin, +z normals.
 
     Boundary curve ``"outer"`` (r = radius). With ``inner_radius`` the circle
@@ -384,7 +384,9 @@ def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner
     outer region apart by triangle centroids (r < inner_radius).
     ``inner_edge_length`` refines the mesh near the circle: the size is
     ``inner_edge_length`` within one inner edge length of the circle and grows
-    linearly (gradient 0.3) to ``edge_length`` away from it.
+    linearly (gradient 0.3) to ``edge_length`` away from it. With ``refine_inside`` the whole
+    inner disk has ``inner_edge_length`` (for fields that vary across it, not only along the
+    circle), and the size grows the same way outside.
 
     ``n_vertices`` converts to a uniform edge length (the refinement adds vertices).
 
@@ -397,11 +399,14 @@ def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner
     h = _resolution(edge_length, n_vertices, math.pi * R * R, BOUNDARY_LINEAR * 2 * math.pi * R, R, "radius")
     r = None if inner_radius is None else _positive("inner_radius", inner_radius, R, f"{R:g}", closed=False)
     hi = None
+    if refine_inside and inner_edge_length is None:
+        raise ValueError("refine_inside needs inner_edge_length (the edge length inside)")
     if inner_edge_length is not None:
         if r is None:
             raise ValueError("inner_edge_length needs inner_radius")
         hi = _positive("inner_edge_length", inner_edge_length, h, f"{h:g} (the edge_length)")
-        if _vertices_for_edge_length(hi, 4 * math.pi * r * hi, 0.0) > MAX_VERTICES:
+        fine_area = math.pi * (r + hi) ** 2 if refine_inside else 4 * math.pi * r * hi
+        if _vertices_for_edge_length(hi, fine_area, 0.0) > MAX_VERTICES:
             raise ValueError(f"inner_edge_length={inner_edge_length!r} is too small for inner_radius={r:g}")
     tol = 1e-7 * R
     with _gmsh_model(seed) as gmsh:
@@ -417,17 +422,24 @@ def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner
             circles = [c for _, c in gmsh.model.getEntities(1)
                        if abs(gmsh.model.occ.getMass(1, c) - 2 * math.pi * r) < 1e-6 * R]
             f = gmsh.model.mesh.field
-            dist = f.add("Distance")
-            f.setNumbers(dist, "CurvesList", circles)
-            # the distance is sampled at points along the curve: space them well below hi
-            f.setNumber(dist, "Sampling", int(math.ceil(4 * math.pi * r / hi)) + 20)
+            if refine_inside:
+                # the radius itself as the "distance": the size is hi up to r + hi
+                dist = f.add("MathEval")
+                f.setString(dist, "F", "Sqrt(x*x + y*y)")
+                d0 = r + hi
+            else:
+                dist = f.add("Distance")
+                f.setNumbers(dist, "CurvesList", circles)
+                # the distance is sampled at points along the curve: space them well below hi
+                f.setNumber(dist, "Sampling", int(math.ceil(4 * math.pi * r / hi)) + 20)
+                d0 = hi
             thr = f.add("Threshold")
             f.setNumber(thr, "InField", dist)
             f.setNumber(thr, "SizeMin", hi)
             f.setNumber(thr, "SizeMax", h)
-            f.setNumber(thr, "DistMin", hi)
+            f.setNumber(thr, "DistMin", d0)
             # grow the size with gradient 0.3: gentle enough for good triangles
-            f.setNumber(thr, "DistMax", hi + (h - hi) / 0.3)
+            f.setNumber(thr, "DistMax", d0 + (h - hi) / 0.3)
             f.setAsBackgroundMesh(thr)
             gmsh.option.setNumber("Mesh.MeshSizeMin", hi)
             gmsh.option.setNumber("Mesh.MeshSizeMax", h)
@@ -448,6 +460,7 @@ def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner
     name = f"disk radius={R:g} edge_length={h:.4g}"
     if r is not None:
         name += f" inner_radius={r:g}" + (f" inner_edge_length={hi:.4g}" if hi is not None else "")
+        name += " refine_inside" if refine_inside and hi is not None else ""
     return _finish(points, tri, curves, _up, name + f" seed={seed}", interior=("inner",))
 
 
