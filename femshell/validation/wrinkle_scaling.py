@@ -45,7 +45,10 @@ flat disk's): the inclusion folds more sharply than this mesh carries. So the h 
 result (no exponent) and the ε sweep two at the same n (exponent 0 ± 0.28 against −1/4). Neither
 resolution-12 check is a result. The run of 2026-11-27 (n = 3, 6, 4 against h, every state stable) used
 the angle edge unknown, which can flip normals (5 flipped edges measured in its resolution-12 broadband
-start), and its rows tested the inertia only.
+start), and its rows tested the inertia only. Probes with the grown region refined to edge 0.125
+(docs/disk-crosscheck.md) resolve every h = 0.25 state (n = 2, 5, 5 at ε = 0.3, 0.4, 0.5), but there the
+ramp's first step fails at h ≥ 0.35: this level moves to that mesh once the ramp retries failed steps in
+smaller ones.
 """
 
 from __future__ import annotations
