@@ -418,9 +418,6 @@ def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner
             occ.fragment([(2, outer)], [(2, inner)])
         occ.synchronize()
         if hi is not None and hi < h:
-            # the inner circle is the curve of length 2 pi r
-            circles = [c for _, c in gmsh.model.getEntities(1)
-                       if abs(gmsh.model.occ.getMass(1, c) - 2 * math.pi * r) < 1e-6 * R]
             f = gmsh.model.mesh.field
             if refine_inside:
                 # the radius itself as the "distance": the size is hi up to r + hi
@@ -428,6 +425,9 @@ def disk(radius=1.0, edge_length=None, n_vertices=None, inner_radius=None, inner
                 f.setString(dist, "F", "Sqrt(x*x + y*y)")
                 d0 = r + hi
             else:
+                # the distance to the inner circle, the curve of length 2 pi r
+                circles = [c for _, c in gmsh.model.getEntities(1)
+                           if abs(gmsh.model.occ.getMass(1, c) - 2 * math.pi * r) < 1e-6 * R]
                 dist = f.add("Distance")
                 f.setNumbers(dist, "CurvesList", circles)
                 # the distance is sampled at points along the curve: space them well below hi

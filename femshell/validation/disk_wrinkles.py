@@ -554,9 +554,10 @@ def run(level, log=None):
     _LAST["level"] = level
     # only resolved stable equilibria have a wrinkle count (the others fail a toleranced row)
     ok = [(h, R2, r) for h, R2, r in results if r["result"]]
-    thick = sorted([(R2, r["count"]) for h, R2, r in ok if h == 2.0])
-    for hh in sorted({h for h, _, _ in ok}, reverse=True):
-        series = sorted([(R2, r["count"]) for h, R2, r in ok if h == hh])
+    # (R2, count) of the results at each h, by R2
+    by_h = {hh: sorted((R2, r["count"]) for h, R2, r in ok if h == hh) for hh in {h for h, _, _ in ok}}
+    thick = by_h.get(2.0, [])
+    for hh, series in sorted(by_h.items(), reverse=True):
         counts = [c for _, c in series]
         if len(counts) < 2:
             continue
