@@ -105,3 +105,39 @@ def test_seeded_state_resumes_from_its_checkpoint(tmp_path, monkeypatch):
     save_checkpoint(ck, state, meta)
     with pytest.raises(ValueError, match="edge_unknown"):
         ws.seeded_state(d, 0.2, 0.1, checkpoint=ck)
+
+
+def test_growth_history_snapshots_and_checkpoint(tmp_path, monkeypatch):
+    """One growth history gives its end state and the snapshots its relaxation passes (not one on the followed
+    branch); the finished history is read back without a solve; a checkpoint of another law, ε or snapshot set is
+    refused."""
+    ck = tmp_path / "path.npz"
+    # h = 1, resolution 4: the dome branch is followed to eps ~ 0.39, the relaxation goes on from there
+    d, states, summary = ws.growth_history(1.0, 0.5, 4, "svk", snapshots=(0.2, 0.45), checkpoint=ck)
+    assert sorted(states) == [0.45, 0.5]
+    assert summary["relaxed"] and 0.0 < summary["eps_first"] < 0.2
+    # independent of the bookkeeping: each state is an equilibrium at its own ε, and they differ
+    for eps, u in states.items():
+        assert d.relative_residual(u, eps) <= ws.EQUILIBRIUM_RTOL
+    assert np.abs(states[0.45] - states[0.5]).max() > 1e-3
+
+    def no_follow(*a, **k):
+        raise AssertionError("a finished history was solved again")
+
+    monkeypatch.setattr(ws, "follow", no_follow)
+    d2, again, summary2 = ws.growth_history(1.0, 0.5, 4, "svk", snapshots=(0.45, 0.2), checkpoint=ck)
+    assert sorted(again) == sorted(states) and summary2 == summary and d2.n_vertices == d.n_vertices
+    for eps in states:
+        np.testing.assert_array_equal(again[eps], states[eps])
+    with pytest.raises(ValueError, match="law"):
+        ws.growth_history(1.0, 0.5, 4, "neo-hookean", snapshots=(0.2, 0.45), checkpoint=ck)
+    with pytest.raises(ValueError, match="eps"):
+        ws.growth_history(1.0, 0.4, 4, "svk", snapshots=(0.2,), checkpoint=ck)
+    with pytest.raises(ValueError, match="snapshots"):
+        ws.growth_history(1.0, 0.5, 4, "svk", checkpoint=ck)
+
+
+def test_history_plan_grows_each_h_once():
+    plan = ws.history_plan({"h": (0.25, 0.5), "eps": (0.3, 0.5, 0.4), "h_fixed": 0.25, "resolution": 24,
+                            "mesh_check": ((0.5, 0.5, 28),)})
+    assert plan == {(0.25, 24): (0.5, [0.3, 0.4]), (0.5, 24): (0.5, []), (0.5, 28): (0.5, [])}

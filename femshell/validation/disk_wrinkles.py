@@ -321,12 +321,12 @@ def _stop_on_loss(branch, row):
     return row["n_negative"] > 0 and any(r["n_negative"] == 0 for r in rows[:-1])
 
 
-def _follow_branch(d, start=None, log=None, **opts):
-    """Follow a branch to ε = 0.5 with stability from the inertia of every accepted point; stop where it
+def _follow_branch(d, start=None, log=None, eps_end=EPS_END, **opts):
+    """Follow a branch to ε = ``eps_end`` with stability from the inertia of every accepted point; stop where it
     loses stability (the flat branch from ε = 0 when ``start`` is None, else the branch born at the
     SpecialPoint ``start``). No special-point location by the continuation itself (``detect=False``):
     see :func:`loss_of_stability`."""
-    common = dict(lam_stop=EPS_END, max_steps=MAX_STEPS, n_eigs=0, detect=False, record=d.record,
+    common = dict(lam_stop=eps_end, max_steps=MAX_STEPS, n_eigs=0, detect=False, record=d.record,
                   callback=_stop_on_loss, log=log)
     common.update(opts)
     if start is None:
@@ -408,24 +408,35 @@ def loss_of_stability(d, branch):
                         info={"mode_tangent_cosine": cosine})
 
 
-def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=False):
-    """Flat branch, branch switching, secondary switches, stable state at ε = 0.5 (module docstring).
+def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=False, eps_end=EPS_END,
+           snapshots=()):
+    """Flat branch, branch switching, secondary switches, stable state at ε = ``eps_end`` (module docstring;
+    the paper's 0.5 by default).
 
     ``verbose``: also pass ``log`` to the continuation (one line per step); ``law``: the membrane
-    law (:class:`~femshell.shell.Material`).
+    law (:class:`~femshell.shell.Material`); ``snapshots``: growth strains below ``eps_end`` at which the
+    relaxation (step 3) also stops and records its state, so that one growth history gives the states at
+    several ε (a snapshot that falls on a followed branch, before the relaxation starts, is not recorded:
+    follow to that ε instead, the continuation stops there exactly).
     Returns a dict: disk, branches (list of Branch), switch_points (SpecialPoint list), folds (the
     fold SpecialPoints where the shell snapped), failed (why a switch failed, or None), first (the
     first loss of stability of the flat state or None), n_first, u, w, count, spectrum, rim
     (:meth:`Disk.rim_mode`), relaxed,
     n_negative_final (None when the Hessian is not finite), residual (:meth:`Disk.relative_residual` at
-    ε = 0.5), over_folded, largest_turn, result (a resolved stable equilibrium: the state counts), energy, wall_s.
+    ``eps_end``), over_folded, largest_turn, result (a resolved stable equilibrium: the state counts), energy, wall_s,
+    snapshots ({ε: u} of the snapshots the relaxation passed).
     """
+    if not (isinstance(eps_end, (int, float)) and not isinstance(eps_end, bool) and 0.0 < eps_end <= 1.0):
+        raise ValueError(f"eps_end must be a growth strain in (0, 1], got {eps_end!r}")
+    snapshots = sorted({float(e) for e in snapshots})
+    if any(not 0.0 < e < eps_end for e in snapshots):
+        raise ValueError(f"snapshots must lie in (0, eps_end = {eps_end:g}), got {snapshots}")
     t0 = time.perf_counter()
     log = log or _quiet
     clog = log if verbose else None
     d = Disk(h, R2, resolution, law=law, refine_inside=refine_inside)
     prob = d.problem
-    branch = _follow_branch(d, None, log=clog)
+    branch = _follow_branch(d, None, log=clog, eps_end=eps_end)
     branches, switches = [branch], []
     first = sp = loss_of_stability(d, branch)
     n_first = d.mode_wavenumber(first.modes) if first is not None else None
@@ -436,7 +447,7 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
     log(f"  h={h:g} R2={R2:g}: {d.n_vertices} vertices; flat branch: "
         + (f"first instability at eps = {first.parameter:.5g}, {first.multiplicity} negative eigenvalue(s) "
            f"past it, n = {n_first}, smallest stretch/target {stretch_first:.4f} (SVK limit "
-           f"{svk_ellipticity_stretch():.4f})" if first else f"stable up to eps = {EPS_END}")
+           f"{svk_ellipticity_stretch():.4f})" if first else f"stable up to eps = {eps_end:g}")
         + f" ({time.perf_counter() - t0:.0f} s)")
     u, eps = branch.last
     end_stable = branch.status == "lam_stop" and [r for r in branch.rows if not r["special"]][-1]["n_negative"] == 0
@@ -451,7 +462,7 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
         else:
             switches.append(sp)
             try:
-                branch = _follow_branch(d, sp, log=clog, label=f"switch {len(switches)}")
+                branch = _follow_branch(d, sp, log=clog, eps_end=eps_end, label=f"switch {len(switches)}")
             except ContinuationError as exc:
                 failed = f"branch switching at eps = {sp.parameter:.5g} failed ({exc})"
                 log("    " + failed)
@@ -472,17 +483,22 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
                                          f"mode(s), n = {d.mode_wavenumber(sp.modes)})" if sp else "")
             + f" ({time.perf_counter() - t0:.0f} s)")
     relaxed = False
-    if not (abs(eps - EPS_END) < 1e-12 and end_stable):
+    taken = {}
+    if not (abs(eps - eps_end) < 1e-12 and end_stable):
         relaxed = True
-        for e in np.linspace(eps, EPS_END, max(2, int(math.ceil(abs(EPS_END - eps) / 0.05)) + 1))[1:]:
+        steps = np.linspace(eps, eps_end, max(2, int(math.ceil(abs(eps_end - eps) / 0.05)) + 1))[1:]
+        wanted = [e for e in snapshots if eps < e < eps_end]
+        for e in sorted(set(steps.tolist()) | set(wanted)):
             prob.set_parameter(float(e))
             try:
                 u = minimize(prob, u, stable=True, max_iter=200, log=None).u
             except NewtonError as exc:      # keep the last iterate: the stability row reports it
                 log(f"    stable Newton failed at eps = {e:.4g}: {exc}")
                 u = exc.result.u if getattr(exc, "result", None) is not None else u
-        log(f"    relaxed by stable Newton from eps = {eps:.4g} to {EPS_END}")
-    check = d.final_check(u, EPS_END, log=log)
+            if e in wanted:
+                taken[e] = u.copy()
+        log(f"    relaxed by stable Newton from eps = {eps:.4g} to {eps_end:g}")
+    check = d.final_check(u, eps_end, log=log)
     n_neg = check.pop("n_negative")
     w = d.deflection(u)
     out = dict(disk=d, branches=branches, switch_points=switches, folds=folds, first=first, n_first=n_first, u=u,
@@ -490,8 +506,8 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
                stretch_first=stretch_first,
                w=w, count=d.count(w), spectrum=d.spectrum(w), rim=d.rim_mode(w), relaxed=relaxed,
                n_negative_final=n_neg, **check,
-               energy=float(d.model.energy(u)), wall_s=time.perf_counter() - t0)
-    log(f"    eps = {EPS_END}: {out['count']} wrinkles, {n_neg} negative eigenvalues, residual {out['residual']:.2g} of the "
+               energy=float(d.model.energy(u)), wall_s=time.perf_counter() - t0, snapshots=taken)
+    log(f"    eps = {eps_end:g}: {out['count']} wrinkles, {n_neg} negative eigenvalues, residual {out['residual']:.2g} of the "
         f"flat disk's, energy {out['energy']:.8g}, "
         f"{out['wall_s']:.0f} s")
     return out

@@ -7,18 +7,33 @@ volume-conserving thickness h/(1 + ε)².
 
 Procedure (per state h, ε)
 --------------------------
-Wrinkles are not on the branch followed from the flat state (that is the axisymmetric dome, see
-:mod:`.disk_wrinkles`), so each state is found the way a relaxing network finds it: the flat disk
-is given a perturbation and ε is raised in steps of ``EPS_STEP`` to its value with Newton with
-saddle escape (:func:`~femshell.solvers.newton.minimize`, ``stable=True``) at every step. Two starts
-on the same mesh: a small dome alone, and the dome plus azimuthal waves k = 2 … 16 of equal
-amplitude and fixed pseudo-random phases (``SEED``) on a band around r = R2. The end state of lower
-energy is the measured one (the seeded start can end in a wrinkled local minimum that the disk
-does not prefer, and the dome start can break its symmetry at a saddle). It must be a local
-minimum resolved by the mesh (the toleranced rows): an equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of
-the flat disk's at the same ε; a step whose Newton fails keeps its last iterate) whose constrained
-Hessian (LDLᵀ) has no negative eigenvalue and no mid-edge normal turned by 80° or more (a fold
-sharper than one element carries, :mod:`.disk_wrinkles`).
+Mesh and law: :class:`~femshell.validation.disk_wrinkles.Disk` with the grown region refined throughout
+(``refine_inside``: edge R2/``resolution`` over r < R2; the full level's 24 is edge 0.125, on which the thin
+disk-wrinkles cases carry their lobed rims) and, at the full level, the neo-Hookean membrane (elliptic in
+compression; the quick level keeps design.md's St Venant–Kirchhoff, as disk-wrinkles' does).
+
+State: the one the disk reaches when it is grown slowly from flat to ε,
+:func:`~femshell.validation.disk_wrinkles.follow`: the flat branch by pseudo-arclength continuation with the
+inertia at every point, its loss of stability bisected, a switch onto the branch born there (again at every
+secondary loss), and, where no branch goes on (a fold, a failed switch), stable Newton (saddle escape) from the
+critical point pushed along its mode, in steps of at most 0.05. No seed is needed: the switch along the
+critical mode picks the branch. Each h is grown once, to the largest ε wanted of it (:func:`history_plan`); the
+states at the smaller ε of the ε sweep are snapshots of that same history, taken where its relaxation passes
+them (a snapshot on a followed branch is grown to on its own: the continuation stops there exactly, on the same
+branch). So the ε sweep is one disk observed as it grows, as an experiment would measure it. A state must be a
+local minimum resolved by the mesh (the toleranced rows): an equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of
+the flat disk's at the same ε; a relaxation whose Newton fails keeps its last iterate), whose constrained
+Hessian (LDLᵀ) has no negative eigenvalue and no mid-edge normal turned by 80° or more (a fold sharper than one
+element carries). Each finished history is checkpointed (:func:`growth_history`), so an interrupted full run
+resumes history by history.
+
+Until 2026-11-28 each state was the lower-energy end of two seeded ramps (:func:`seeded_state`: a small dome,
+and the dome plus azimuthal waves k = 2 … 16 on the rim band; ε raised in fixed steps of ``EPS_STEP`` with
+stable Newton), on a mesh refined only in a band along r = R2. On the refined mesh those ramps fail from their
+first step at h ≥ 0.35: the seed is far from any equilibrium, and Newton creeps from it with shifted steps
+(measured at h = 0.5, ε 0 → 0.05: 128 iterations, 126 s, ending at a saddle with a 90° fold at the centre;
+to ε = 0.01 it converges, to the flat disk, which erases the seed). :func:`seeded_state` stays for the seed
+studies (validation/wrinkle_seeds_study.py, validation/wrinkle_modes_study.py).
 
 Measure: the out-of-plane deflection w (best-fit plane removed) is sampled on the circles
 r = ``RIM_RADII`` · R2 around the rim of the grown region, where a wrinkle would be; the azimuthal
@@ -36,19 +51,16 @@ and −1/4 with no tolerance (the paper's exponents are for a spring network's f
 wrinkles; ours is a measurement); with fewer than two wrinkled states of distinct h (or ε) there is
 no exponent row, and the row counting the wrinkled states says so.
 
-Measured (full level, R2 = 3, resolution 18 = 3 318 vertices, 2-8 min per start; re-run on 2026-11-28
-with the tangent edge unknown; table and reading in docs/disk-crosscheck.md): of the six states of the
-sweeps, four are results. At h = 0.25, ε = 0.3 and 0.4 the rim carries n = 5 lobes (11 % of the dome);
-at ε = 0.5, h = 0.5 has n = 3 (13.5 %), h = 1 none (0.4 %). At h = 0.25 and 0.35, ε = 0.5, both starts
-end with mid-edge normals at the 90° limit (8 and 15 edges past 80°; residuals 5.6e-3 and 1.1e-5 of the
-flat disk's): the inclusion folds more sharply than this mesh carries. So the h sweep has one wrinkled
-result (no exponent) and the ε sweep two at the same n (exponent 0 ± 0.28 against −1/4). Neither
-resolution-12 check is a result. The run of 2026-11-27 (n = 3, 6, 4 against h, every state stable) used
-the angle edge unknown, which can flip normals (5 flipped edges measured in its resolution-12 broadband
-start), and its rows tested the inertia only. Probes with the grown region refined to edge 0.125
-(docs/disk-crosscheck.md) resolve every h = 0.25 state (n = 2, 5, 5 at ε = 0.3, 0.4, 0.5), but there the
-ramp's first step fails at h ≥ 0.35: this level moves to that mesh once the ramp retries failed steps in
-smaller ones.
+Measured (full level, 2026-11-28: R2 = 3, resolution 24 = edge 0.125 inside, 5 244 vertices, neo-Hookean; 3-24
+min per history on one core, two at once; table and reading in docs/disk-crosscheck.md): every state is a
+resolved stable equilibrium (24 of 24 toleranced rows). At ε = 0.5 the rim carries n = 5, 5, 4 lobes at h = 0.25,
+0.35, 0.5 (26-28 % of the dome) and h = 1 stays a dome (0.6 %): λ ∝ h^p with p = 0.30 ± 0.19 (1/2 expected). The
+h = 0.25 history passes n = 2 at ε = 0.3 (the whole inclusion bent into a saddle: k = 2 dominates at every radius
+from 0.5 R2 out, 14-24 % of the dome inside the rim, k = 5 at 4-9 %) and n = 5 at 0.4 and 0.5 (the lobed rim):
+p = −1.1 ± 1.1 against ε (−1/4 expected), a fit across that change of pattern. The mesh check on resolution 28 (6 132
+vertices) moves n by one either way (6 at h = 0.25, 3 at h = 0.5; p = 1.0 ± 0.16): n is decided to within one by
+the mesh and the path, so the exponents are not yet measured to better than their size. The flat disk loses
+stability at ε_c = 0.0028, 0.0055, 0.011, 0.042 for h = 0.25 … 1, ∝ h^1.94 (plate theory: h²).
 """
 
 from __future__ import annotations
@@ -64,12 +76,13 @@ from ..shell.element import EDGE_UNKNOWN
 from ..shell.model import FOLD_LIMIT_DEG
 from ..solvers.linear import LinearSolverError
 from ..solvers.newton import NewtonError, minimize
-from .disk_wrinkles import EQUILIBRIUM_RTOL, Disk, warm_up
+from .disk_wrinkles import EQUILIBRIUM_RTOL, Disk, follow, warm_up
 from .framework import Row, timed
 
 NAME = "wrinkle-scaling"
 DESCRIPTION = ("the paper's disk (inner circle r < R2 grown by eps, volume-conserving thickness): wrinkle "
-               "wavelength 2 pi R2/n of seeded stable states against h and eps, fitted exponents vs 1/2 and -1/4")
+               "wavelength 2 pi R2/n of the stable states reached by growing from flat (continuation, branch "
+               "switching) against h and eps, fitted exponents vs 1/2 and -1/4")
 SOURCE = ("Cerda & Mahadevan, Geometry and physics of wrinkling, PRL 90, 074302 (2003): lambda ~ h^(1/2) "
           "eps^(-1/4); Zakharov & Dasbiswas section 4 (design.md 1.5, 1.6). Exponents reported, no tolerance; "
           "pass criterion: every measured state is a stable equilibrium")
@@ -85,13 +98,13 @@ EPS_STEP = 0.05
 #: circles (radius / R2) where the wavenumber is measured, and the wrinkled threshold
 RIM_RADII = (0.7, 0.85, 1.0, 1.15, 1.3)
 REL_TOL = 0.05
-#: h sweep at ε = EPS_FIXED, ε sweep at h = h_fixed; mesh resolution (edges per R2 along the grown circle);
-#: mesh_check: states (h, ε) measured again on another mesh (resolution) to see whether n depends on the mesh
+#: h sweep at ε = EPS_FIXED, ε sweep at h = h_fixed; mesh resolution (edges per R2, over the whole grown region),
+#: membrane law; mesh_check: states (h, ε, resolution) measured again on another mesh to see whether n depends on it
 EPS_FIXED = 0.5
 LEVELS = {
-    "quick": {"h": (1.0,), "eps": (0.3, 0.5), "h_fixed": 1.0, "resolution": 4, "eps_step": 0.1, "mesh_check": ()},
-    "full": {"h": (0.25, 0.35, 0.5, 1.0), "eps": (0.3, 0.4, 0.5), "h_fixed": 0.25, "resolution": 18,
-             "eps_step": EPS_STEP, "mesh_check": ((0.25, 0.5, 12), (0.5, 0.5, 12))},
+    "quick": {"h": (1.0,), "eps": (0.3, 0.5), "h_fixed": 1.0, "resolution": 4, "law": "svk", "mesh_check": ()},
+    "full": {"h": (0.25, 0.35, 0.5, 1.0), "eps": (0.3, 0.4, 0.5), "h_fixed": 0.25, "resolution": 24,
+             "law": "neo-hookean", "mesh_check": ((0.25, 0.5, 28), (0.5, 0.5, 28))},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
 
@@ -202,25 +215,106 @@ def fit_exponent(x, n):
     return float(coef[1]), float(math.sqrt(cov[1, 1]))
 
 
-def measure(h, eps, resolution, eps_step, checkpoints=None, log=None):
-    """One state: Disk(h, R2); stable states from the dome alone and from the broadband seed; the one of
-    lower energy is the measured state (its rim wavenumber and amplitude, stability). ``checkpoints``:
-    a directory for the two starts' checkpoints (:func:`seeded_state`)."""
-    log = log or (lambda *a, **k: None)
-    d = Disk(h, R2, resolution)
-    starts = {}
-    for name, waves in (("dome", 0.0), ("broadband", SEED_WAVES)):
-        ck = None if checkpoints is None else checkpoints / f"{name}-h{h:g}-eps{eps:g}-res{resolution}-step{eps_step:g}.npz"
-        u, failures = seeded_state(d, eps, eps_step, waves=waves, checkpoint=ck)
-        w = d.deflection(u)
-        n, rel = rim_wavenumber(d, w)
-        starts[name] = dict(u=u, w=w, n=n, rel=rel, failures=failures, energy=float(d.model.energy(u)))
-    best = min(starts, key=lambda k: starts[k]["energy"] if math.isfinite(starts[k]["energy"]) else math.inf)
-    s = dict(starts[best], disk=d, start=best, starts=starts)
-    # a collapsed start (measured: one whose every step failed) has no finite Hessian: no result, and the
-    # stability row says why
-    s.update(d.final_check(s["u"], eps, log=lambda m: log(f"  h={h:g}:{m}")), wrinkled=s["rel"] >= REL_TOL)
+def growth_history(h, eps_end, resolution, law, snapshots=(), checkpoint=None, log=None):
+    """The stable states of Disk(h, R2, resolution, law, refine_inside=True) grown slowly from flat to ``eps_end``:
+    :func:`~femshell.validation.disk_wrinkles.follow` (continuation, branch switching, relaxation where no branch
+    goes on), with the states at the ``snapshots`` the relaxation passes on the way.
+
+    Returns (disk, states, summary): states {ε: u} holds ``eps_end`` and every snapshot that was taken (one on a
+    followed branch is not: follow to it instead); summary: eps_first (the flat disk's loss of stability, or
+    None), n_first, switches (tried), folds, relaxed (the end state), wall_s (of the solve, also when read back).
+
+    With ``checkpoint`` (an .npz path) the finished history is saved there and a later call reads it back instead
+    of solving again; a checkpoint of another disk, ε, snapshots, law or unknown layout is refused (ValueError
+    naming the difference)."""
+    snapshots = sorted({float(e) for e in snapshots})
+    meta = {"h": float(h), "R2": R2, "eps": float(eps_end), "resolution": int(resolution), "law": law,
+            "refine_inside": True, "edge_unknown": EDGE_UNKNOWN}
+    if snapshots:
+        meta["snapshots"] = snapshots
+    if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
+        state, saved = load_checkpoint(checkpoint)
+        differ = {k: (saved.get(k), meta.get(k)) for k in {*meta, "snapshots"} if saved.get(k) != meta.get(k)}
+        if differ:
+            raise ValueError(f"{checkpoint} belongs to another run (saved, now: {differ}); remove it to start afresh")
+        d = Disk(h, R2, resolution, law=law, refine_inside=True)
+        n_unknowns = len(d.model.initial_unknowns())
+        if len(state["u"]) != n_unknowns:
+            raise ValueError(f"{checkpoint} has {len(state['u'])} unknowns, this mesh {n_unknowns}: another "
+                             "mesh generator made it; remove it to start afresh")
+        states = {float(eps_end): state["u"]}
+        if "snap_eps" in state:       # a history without snapshots may have been saved without these
+            states.update(zip(state["snap_eps"].tolist(), state["snap_u"]))
+        summary = {k: np.asarray(state[k]).item() for k in ("eps_first", "n_first", "switches", "folds", "relaxed", "wall_s")}
+        summary["eps_first"] = None if summary["eps_first"] < 0 else summary["eps_first"]
+        summary["n_first"] = None if summary["n_first"] < 0 else summary["n_first"]
+        return d, states, summary
+    out = follow(h, R2, resolution, log=log, law=law, refine_inside=True, eps_end=float(eps_end), snapshots=snapshots)
+    first = out["first"]
+    summary = {"eps_first": None if first is None else float(first.parameter), "n_first": out["n_first"],
+               "switches": len(out["switch_points"]), "folds": len(out["folds"]), "relaxed": bool(out["relaxed"]),
+               "wall_s": float(out["wall_s"])}
+    taken = sorted(out["snapshots"])
+    if checkpoint is not None:
+        u = out["u"]
+        stored = dict(summary, eps_first=-1.0 if first is None else summary["eps_first"],
+                      n_first=-1 if out["n_first"] is None else int(out["n_first"]), u=u,
+                      snap_eps=np.array(taken, float),
+                      snap_u=np.array([out["snapshots"][e] for e in taken]).reshape(len(taken), len(u)))
+        save_checkpoint(checkpoint, stored, meta)
+    return out["disk"], {float(eps_end): out["u"], **out["snapshots"]}, summary
+
+
+def evaluate(disk, u, eps, summary, log=None):
+    """One state u of ``disk`` at ε as a record: its rim wavenumber and amplitude (:func:`rim_wavenumber`), energy,
+    whether it counts (a resolved stable equilibrium, :meth:`~femshell.validation.disk_wrinkles.Disk.final_check`)
+    and the history's ``summary`` (:func:`growth_history`)."""
+    w = disk.deflection(u)
+    n, rel = rim_wavenumber(disk, w)
+    s = dict(summary, disk=disk, u=u, w=w, n=n, rel=rel, wrinkled=rel >= REL_TOL)
+    s.update(disk.final_check(u, eps, log=log))
+    disk.problem.set_parameter(float(eps))
+    s["energy"] = float(disk.model.energy(u))
     return s
+
+
+def history_plan(cfg):
+    """Which growth histories a level needs: {(h, resolution): (eps_end, snapshots)}, each h grown to the largest ε
+    wanted of it, the smaller ones its snapshots (the h sweep at EPS_FIXED, the ε sweep at h_fixed, the mesh
+    checks)."""
+    wanted = {}
+    keys = ([(h, EPS_FIXED, cfg["resolution"]) for h in cfg["h"]] + [(cfg["h_fixed"], e, cfg["resolution"])
+                                                                       for e in cfg["eps"]] + list(cfg["mesh_check"]))
+    for h, e, r in keys:
+        wanted.setdefault((h, r), set()).add(e)
+    return {k: (max(v), sorted(v - {max(v)})) for k, v in wanted.items()}
+
+
+def measure_all(cfg, checkpoints=None, log=None):
+    """Every state of a level (:func:`history_plan`): {(h, ε, resolution): record (:func:`evaluate`)}. A snapshot
+    that fell on a followed branch is grown to on its own (:func:`growth_history` with ``eps_end`` = ε)."""
+    log = log or (lambda *a, **k: None)
+
+    def name(h, e, r, snaps):
+        tail = "-snap" + ",".join(f"{x:g}" for x in snaps) if snaps else ""
+        return None if checkpoints is None else checkpoints / f"path-h{h:g}-eps{e:g}-res{r}-{cfg['law']}{tail}.npz"
+
+    states = {}
+    for (h, r), (eps_end, snaps) in history_plan(cfg).items():
+        with timed() as t:
+            d, got, summary = growth_history(h, eps_end, r, cfg["law"], snaps, name(h, eps_end, r, snaps), log)
+        summary["wall_s"] = max(summary["wall_s"], t())     # read back from a checkpoint: the solve's own time
+        for e in [eps_end] + snaps:
+            if e in got:
+                states[(h, e, r)] = evaluate(d, got[e], e, dict(summary, relaxed=summary["relaxed"] or e != eps_end),
+                                             log=lambda m: log(f"  h={h:g}:{m}"))
+            else:
+                log(f"  h={h:g} eps={e:g}: on a followed branch of the history to {eps_end:g}: grown to on its own")
+                with timed() as t:
+                    d1, one, summary1 = growth_history(h, e, r, cfg["law"], (), name(h, e, r, ()), log)
+                summary1["wall_s"] = max(summary1["wall_s"], t())
+                states[(h, e, r)] = evaluate(d1, one[e], e, summary1, log=lambda m: log(f"  h={h:g}:{m}"))
+    return states
 
 
 def run(level, out_dir=None, log=None):
@@ -228,25 +322,21 @@ def run(level, out_dir=None, log=None):
     warm_up()
     cfg = LEVELS[level]
     checkpoints = None
-    if level == "full":       # hours: every ε step is checkpointed, a second call resumes
+    if level == "full":       # an hour: every finished growth history is checkpointed, a second call resumes
         checkpoints = Path(out_dir or "validation-out") / "wrinkle-scaling-checkpoints"
         checkpoints.mkdir(parents=True, exist_ok=True)
         log(f"  checkpoints in {checkpoints}")
     res = cfg["resolution"]
     h_fixed = cfg["h_fixed"]
     sweeps = {"h": [(h, EPS_FIXED, res) for h in cfg["h"]], "eps": [(h_fixed, e, res) for e in cfg["eps"]]}
-    states = {}
-    for key in sweeps["h"] + sweeps["eps"] + list(cfg["mesh_check"]):
-        if key in states:
-            continue
-        with timed() as t:
-            s = measure(*key, cfg["eps_step"], checkpoints, log=log)
-        s["wall_s"] = t()
-        states[key] = s
-        log(f"  h={key[0]:g} eps={key[1]:g} resolution {key[2]}: {s['disk'].n_vertices} vertices; "
-            + "; ".join(f"from the {k}: energy {v['energy']:.8g}, n = {v['n']}, rim amplitude {v['rel']:.3g}, "
-                        f"{v['failures']} Newton failures" for k, v in s["starts"].items())
-            + f"; lower: {s['start']}, {s['n_negative']} negative eigenvalues ({s['wall_s']:.0f} s)")
+    states = measure_all(cfg, checkpoints, log)
+    for key, s in states.items():
+        log(f"  h={key[0]:g} eps={key[1]:g} resolution {key[2]}: {s['disk'].n_vertices} vertices; flat disk unstable "
+            + ("nowhere" if s["eps_first"] is None else f"from eps = {s['eps_first']:.4g} (n = {s['n_first']})")
+            + f"; {s['switches']} branch switch(es) tried, {s['folds']} fold(s), " + ("relaxed" if s["relaxed"] else
+                                                                                 "on a followed branch")
+            + f"; n = {s['n']}, rim amplitude {s['rel']:.3g}, energy {s['energy']:.8g}, {s['n_negative']} negative "
+            f"eigenvalues, {s['over_folded']} over-folded edges (history {s['wall_s']:.0f} s)")
     rows = []
     for (h, eps, r), s in states.items():
         at = f" @ h={h:g} eps={eps:g} resolution {r}"
@@ -254,9 +344,10 @@ def run(level, out_dir=None, log=None):
         rows.append(Row("non-axisymmetric rim amplitude / axisymmetric (wrinkled when >= "
                         f"{REL_TOL:g})" + at, s["rel"], None, None, nv, wall))
         rows.append(Row("dominant rim wavenumber n (k >= 2)" + at, s["n"], None, None, nv, wall))
-        e = {k: v["energy"] for k, v in s["starts"].items()}
-        rows.append(Row("energy from the broadband seed / energy from the dome alone - 1 (the lower is measured)"
-                        + at, e["broadband"] / e["dome"] - 1.0, None, None, nv, wall))
+        rows.append(Row("eps where the flat disk loses stability (on the path; nan: nowhere below eps)" + at,
+                        math.nan if s["eps_first"] is None else s["eps_first"], None, None, nv, wall))
+        rows.append(Row("end state reached on a followed branch (0) or by stable Newton past a fold or failed switch "
+                        "(1)" + at, float(s["relaxed"]), None, None, nv, wall))
         rows.append(Row("negative eigenvalues of the constrained Hessian (0: stable)" + at
                         + ("" if s["n_negative"] is not None else ": not decided, the Hessian is not finite"),
                         math.nan if s["n_negative"] is None else s["n_negative"], 0.0, 0.0, nv, wall))
