@@ -53,14 +53,15 @@ no exponent row, and the row counting the wrinkled states says so.
 
 Measured (full level, 2026-11-28: R2 = 3, resolution 24 = edge 0.125 inside, 5 244 vertices, neo-Hookean; 3-24
 min per history on one core, two at once; table and reading in docs/disk-crosscheck.md): every state is a
-resolved stable equilibrium (24 of 24 toleranced rows). At ε = 0.5 the rim carries n = 5, 5, 4 lobes at h = 0.25,
-0.35, 0.5 (26-28 % of the dome) and h = 1 stays a dome (0.6 %): λ ∝ h^p with p = 0.30 ± 0.19 (1/2 expected). The
+resolved stable equilibrium (27 of 27 toleranced rows). At ε = 0.5 the rim carries n = 5, 5, 4 lobes at h = 0.25,
+0.35, 0.5 (26-28 % of the dome) and h = 0.7 and 1 stay domes (0.7 %, 0.6 %): λ ∝ h^p with p = 0.30 ± 0.19 (1/2
+expected). The
 h = 0.25 history passes n = 2 at ε = 0.3 (the whole inclusion bent into a saddle: k = 2 dominates at every radius
 from 0.5 R2 out, 14-24 % of the dome inside the rim, k = 5 at 4-9 %) and n = 5 at 0.4 and 0.5 (the lobed rim):
-p = −1.1 ± 1.1 against ε (−1/4 expected), a fit across that change of pattern. The mesh check on resolution 28 (6 132
-vertices) moves n by one either way (6 at h = 0.25, 3 at h = 0.5; p = 1.0 ± 0.16): n is decided to within one by
-the mesh and the path, so the exponents are not yet measured to better than their size. The flat disk loses
-stability at ε_c = 0.0028, 0.0055, 0.011, 0.042 for h = 0.25 … 1, ∝ h^1.94 (plate theory: h²).
+p = −1.1 ± 1.1 against ε (−1/4 expected), a fit across that change of pattern. The mesh check on resolution 28
+(6 132 vertices) moves n by one either way (6 at h = 0.25, 3 at h = 0.5; p = 1.0 ± 0.16): n is decided to within
+one by the mesh and the path, so the exponents are not yet measured to better than their size. The flat disk loses
+stability at ε_c = 0.0028, 0.0055, 0.011, 0.021, 0.042 for h = 0.25 … 1, ∝ h^1.94 (plate theory: h²).
 """
 
 from __future__ import annotations
@@ -103,7 +104,7 @@ REL_TOL = 0.05
 EPS_FIXED = 0.5
 LEVELS = {
     "quick": {"h": (1.0,), "eps": (0.3, 0.5), "h_fixed": 1.0, "resolution": 4, "law": "svk", "mesh_check": ()},
-    "full": {"h": (0.25, 0.35, 0.5, 1.0), "eps": (0.3, 0.4, 0.5), "h_fixed": 0.25, "resolution": 24,
+    "full": {"h": (0.25, 0.35, 0.5, 0.7, 1.0), "eps": (0.3, 0.4, 0.5), "h_fixed": 0.25, "resolution": 24,
              "law": "neo-hookean", "mesh_check": ((0.25, 0.5, 28), (0.5, 0.5, 28))},
 }
 REFERENCE = {"h": 0.5, "eps": -0.25}
@@ -245,7 +246,8 @@ def growth_history(h, eps_end, resolution, law, snapshots=(), checkpoint=None, l
         states = {float(eps_end): state["u"]}
         if "snap_eps" in state:       # a history without snapshots may have been saved without these
             states.update(zip(state["snap_eps"].tolist(), state["snap_u"]))
-        summary = {k: np.asarray(state[k]).item() for k in ("eps_first", "n_first", "switches", "folds", "relaxed", "wall_s")}
+        summary = {k: np.asarray(state[k]).item()
+                   for k in ("eps_first", "n_first", "switches", "folds", "relaxed", "wall_s")}
         summary["eps_first"] = None if summary["eps_first"] < 0 else summary["eps_first"]
         summary["n_first"] = None if summary["n_first"] < 0 else summary["n_first"]
         return d, states, summary
