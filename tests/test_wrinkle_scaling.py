@@ -141,3 +141,13 @@ def test_history_plan_grows_each_h_once():
     plan = ws.history_plan({"h": (0.25, 0.5), "eps": (0.3, 0.5, 0.4), "h_fixed": 0.25, "resolution": 24,
                             "mesh_check": ((0.5, 0.5, 28),)})
     assert plan == {(0.25, 24): (0.5, [0.3, 0.4]), (0.5, 24): (0.5, []), (0.5, 28): (0.5, [])}
+
+
+@pytest.mark.parametrize("kw, match", [({"eps_end": 0.0}, "eps_end"), ({"eps_end": 1.5}, "eps_end"),
+                                       ({"eps_end": True}, "eps_end"), ({"snapshots": (0.5,)}, "snapshots"),
+                                       ({"eps_end": 0.4, "snapshots": (0.3, -0.1)}, "snapshots")])
+def test_follow_refuses_an_impossible_growth_range(kw, match):
+    from femshell.validation.disk_wrinkles import follow
+
+    with pytest.raises(ValueError, match=match):
+        follow(1.0, ws.R2, 4, **kw)
