@@ -60,7 +60,8 @@ h = 0.25 history passes n = 2 at ε = 0.3 (the whole inclusion bent into a saddl
 from 0.5 R2 out, 14-24 % of the dome inside the rim, k = 5 at 4-9 %) and n = 5 at 0.4 and 0.5 (the lobed rim):
 p = −1.1 ± 1.1 against ε (−1/4 expected), a fit across that change of pattern. The mesh check on resolution 28
 (6 132 vertices) moves n by one either way (6 at h = 0.25, 3 at h = 0.5; p = 1.0 ± 0.16): n is decided to within
-one by the mesh and the path, so the exponents are not yet measured to better than their size. The flat disk loses
+one by the mesh and the path, so the exponents are not yet measured to better than their size (probes on
+resolution 32, docs/disk-crosscheck.md: n = 6 and 4, p = 0.58 ± 0.13). The flat disk loses
 stability at ε_c = 0.0028, 0.0055, 0.011, 0.021, 0.042 for h = 0.25 … 1, ∝ h^1.94 (plate theory: h²).
 """
 
