@@ -113,6 +113,19 @@ REFERENCE = {"h": 0.5, "eps": -0.25}
 _LAST = {}
 
 
+def _saved_run(checkpoint, meta, keys=()):
+    """(state, saved meta) of the checkpoint a run resumes from (or its ``.prev``), None when there is none.
+    ValueError naming the difference when the saved meta differs from ``meta`` in any of its keys or in ``keys``
+    (keys the current run may leave out of its meta)."""
+    if checkpoint is None or not (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
+        return None
+    state, saved = load_checkpoint(checkpoint)
+    differ = {k: (saved.get(k), meta.get(k)) for k in {*meta, *keys} if saved.get(k) != meta.get(k)}
+    if differ:
+        raise ValueError(f"{checkpoint} belongs to another run (saved, now: {differ}); remove it to start afresh")
+    return state, saved
+
+
 def seed_shape(disk, seed=SEED, waves=SEED_WAVES, modes=SEED_MODES):
     """Out-of-plane displacement z of a seeded start: the dome SEED_DOME · h exp(−r²/R2²) plus azimuthal
     waves on a band around r = R2,
@@ -152,11 +165,9 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
             "eps": float(eps), "n_steps": n_steps, "seed": seed, "waves": waves, "dome": SEED_DOME, "modes": modes,
             "edge_unknown": EDGE_UNKNOWN}
     done = 0
-    if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
-        state, saved = load_checkpoint(checkpoint)
-        differ = {k: (saved.get(k), v) for k, v in meta.items() if saved.get(k) != v}
-        if differ:
-            raise ValueError(f"{checkpoint} belongs to another run (saved, now: {differ}); remove it to start afresh")
+    resumed = _saved_run(checkpoint, meta)
+    if resumed is not None:
+        state = resumed[0]
         u, failures, done = state["u"], state["failures"], state["step"]
     for step, e in enumerate(np.linspace(0.0, eps, n_steps + 1)[1:], start=1):
         if step <= done:
@@ -234,11 +245,9 @@ def growth_history(h, eps_end, resolution, law, snapshots=(), checkpoint=None, l
             "refine_inside": True, "edge_unknown": EDGE_UNKNOWN}
     if snapshots:
         meta["snapshots"] = snapshots
-    if checkpoint is not None and (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
-        state, saved = load_checkpoint(checkpoint)
-        differ = {k: (saved.get(k), meta.get(k)) for k in {*meta, "snapshots"} if saved.get(k) != meta.get(k)}
-        if differ:
-            raise ValueError(f"{checkpoint} belongs to another run (saved, now: {differ}); remove it to start afresh")
+    resumed = _saved_run(checkpoint, meta, keys=("snapshots",))
+    if resumed is not None:
+        state = resumed[0]
         d = Disk(h, R2, resolution, law=law, refine_inside=True)
         n_unknowns = len(d.model.initial_unknowns())
         if len(state["u"]) != n_unknowns:
@@ -281,14 +290,19 @@ def evaluate(disk, u, eps, summary, log=None):
     return s
 
 
+def sweeps_of(cfg):
+    """The states (h, ε, resolution) of a level's two sweeps: {"h": at ε = EPS_FIXED, "eps": at h = h_fixed}."""
+    res = cfg["resolution"]
+    return {"h": [(h, EPS_FIXED, res) for h in cfg["h"]], "eps": [(cfg["h_fixed"], e, res) for e in cfg["eps"]]}
+
+
 def history_plan(cfg):
     """Which growth histories a level needs: {(h, resolution): (eps_end, snapshots)}, each h grown to the largest ε
     wanted of it, the smaller ones its snapshots (the h sweep at EPS_FIXED, the ε sweep at h_fixed, the mesh
     checks)."""
     wanted = {}
-    keys = ([(h, EPS_FIXED, cfg["resolution"]) for h in cfg["h"]] + [(cfg["h_fixed"], e, cfg["resolution"])
-                                                                       for e in cfg["eps"]] + list(cfg["mesh_check"]))
-    for h, e, r in keys:
+    sweeps = sweeps_of(cfg)
+    for h, e, r in sweeps["h"] + sweeps["eps"] + list(cfg["mesh_check"]):
         wanted.setdefault((h, r), set()).add(e)
     return {k: (max(v), sorted(v - {max(v)})) for k, v in wanted.items()}
 
@@ -298,25 +312,25 @@ def measure_all(cfg, checkpoints=None, log=None):
     that fell on a followed branch is grown to on its own (:func:`growth_history` with ``eps_end`` = ε)."""
     log = log or (lambda *a, **k: None)
 
-    def name(h, e, r, snaps):
+    def grow(h, e, r, snaps):
         tail = "-snap" + ",".join(f"{x:g}" for x in snaps) if snaps else ""
-        return None if checkpoints is None else checkpoints / f"path-h{h:g}-eps{e:g}-res{r}-{cfg['law']}{tail}.npz"
+        ck = None if checkpoints is None else checkpoints / f"path-h{h:g}-eps{e:g}-res{r}-{cfg['law']}{tail}.npz"
+        with timed() as t:
+            d, got, summary = growth_history(h, e, r, cfg["law"], snaps, ck, log)
+        summary["wall_s"] = max(summary["wall_s"], t())     # read back from a checkpoint: the solve's own time
+        return d, got, summary
 
     states = {}
     for (h, r), (eps_end, snaps) in history_plan(cfg).items():
-        with timed() as t:
-            d, got, summary = growth_history(h, eps_end, r, cfg["law"], snaps, name(h, eps_end, r, snaps), log)
-        summary["wall_s"] = max(summary["wall_s"], t())     # read back from a checkpoint: the solve's own time
+        d, got, summary = grow(h, eps_end, r, snaps)
         for e in [eps_end] + snaps:
             if e in got:
-                states[(h, e, r)] = evaluate(d, got[e], e, dict(summary, relaxed=summary["relaxed"] or e != eps_end),
-                                             log=lambda m: log(f"  h={h:g}:{m}"))
+                dd, u, ss = d, got[e], dict(summary, relaxed=summary["relaxed"] or e != eps_end)
             else:
                 log(f"  h={h:g} eps={e:g}: on a followed branch of the history to {eps_end:g}: grown to on its own")
-                with timed() as t:
-                    d1, one, summary1 = growth_history(h, e, r, cfg["law"], (), name(h, e, r, ()), log)
-                summary1["wall_s"] = max(summary1["wall_s"], t())
-                states[(h, e, r)] = evaluate(d1, one[e], e, summary1, log=lambda m: log(f"  h={h:g}:{m}"))
+                dd, one, ss = grow(h, e, r, [])
+                u = one[e]
+            states[(h, e, r)] = evaluate(dd, u, e, ss, log=lambda m: log(f"  h={h:g}:{m}"))
     return states
 
 
@@ -329,9 +343,8 @@ def run(level, out_dir=None, log=None):
         checkpoints = Path(out_dir or "validation-out") / "wrinkle-scaling-checkpoints"
         checkpoints.mkdir(parents=True, exist_ok=True)
         log(f"  checkpoints in {checkpoints}")
-    res = cfg["resolution"]
     h_fixed = cfg["h_fixed"]
-    sweeps = {"h": [(h, EPS_FIXED, res) for h in cfg["h"]], "eps": [(h_fixed, e, res) for e in cfg["eps"]]}
+    sweeps = sweeps_of(cfg)
     states = measure_all(cfg, checkpoints, log)
     for key, s in states.items():
         log(f"  h={key[0]:g} eps={key[1]:g} resolution {key[2]}: {s['disk'].n_vertices} vertices; flat disk unstable "
