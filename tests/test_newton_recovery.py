@@ -604,3 +604,23 @@ def test_any_problem_s_diagnosis_is_appended_to_newton_s_error():
     with pytest.raises(NewtonError) as info:
         minimize(prob, np.zeros(2), max_iter=5, log=None)
     assert str(info.value).endswith(f"At the last iterate spring 0 is stretched to {info.value.result.u[0]:.1f}")
+
+
+def test_a_saddle_whose_well_is_narrower_than_the_first_escape_step_is_still_left():
+    """Π = (x² − w²)²/4 + (y − Y)²/2 with w = 0.1 and a far coordinate Y = 1000 (as positions on a large shell):
+    the escape's first step, 1e-3 · max|u| = 1 along x, overshoots the well (Π rises); a smaller step lowers Π,
+    since the curvature along x is negative at the saddle, and Newton ends at a minimum x = ±w."""
+    w, Y = 0.1, 1000.0
+
+    class NarrowWell:
+        def energy(self, u):
+            return (u[0] ** 2 - w * w) ** 2 / 4 + (u[1] - Y) ** 2 / 2
+
+        def gradient(self, u):
+            return np.array([u[0] ** 3 - w * w * u[0], u[1] - Y])
+
+        def hessian(self, u):
+            return sp.csr_matrix(np.diag([3 * u[0] ** 2 - w * w, 1.0]))
+
+    r = minimize(NarrowWell(), np.array([0.0, Y]), stable=True, log=None)
+    assert r.converged and r.stable and abs(abs(r.u[0]) - w) < 1e-8

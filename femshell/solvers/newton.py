@@ -474,12 +474,19 @@ def _line_search(problem, u, e, g, d, c1=1e-4, max_halvings=30, max_step=None):
     return u, e, g, False
 
 
+#: amplitudes of the escape step, in units of max(|u|, 1): growing ones first; if none lowers the energy,
+#: smaller ones (along a direction of negative curvature a small enough step always does: Π(u + t v) ≈
+#: Π(u) + t ∇Π·v + ½ λ t² |v|² on both sides of a saddle, and positions in u make the first step ~1e-3 of
+#: the shell's size, past the quartic turn of a mildly negative mode on a large shell)
+ESCAPE_AMPLITUDES = (1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6)
+
+
 def _escape_saddle(problem, u, e, K, log):
     """Move from a saddle along the most negative curvature direction, to lower energy."""
     lam, vec = smallest_eigenvalues(K, k=1)
     v = vec[:, 0]
     scale = max(np.abs(u).max(), 1.0)
-    for amp in (1e-3, 3e-3, 1e-2, 3e-2, 1e-1):
+    for amp in ESCAPE_AMPLITUDES:
         best = None
         for s in (1.0, -1.0):
             un = u + s * amp * scale * v / np.abs(v).max()
