@@ -102,3 +102,33 @@ def test_disk_final_state_residual_tells_an_equilibrium_from_a_failed_relaxation
     with pytest.raises(NewtonError) as info:
         minimize(d.problem, u0, max_iter=1, log=None)
     assert d.relative_residual(info.value.result.u, 0.05) > dw.EQUILIBRIUM_RTOL
+
+
+def test_the_disk_has_no_length_of_its_own():
+    """Dimensional analysis: stretching energy ∝ h · area, bending ∝ h³ · curvature² · area, so the disk
+    scaled by s with its thickness has Π(s x, s h) = s³ Π(x, h) at the same ε and edge unknowns (gradient
+    s² on positions, s³ on the dimensionless edge unknowns). Its states, ε_c and counts then depend on
+    R2/h and R1/R2 only: the h = 2 disk at R2 = 12 is the h = 0.5 disk at R2 = 3."""
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    s = 4.0
+    a = dw.Disk(0.5, 3.0, 3, R1=20.0, law="neo-hookean")
+    b = dw.Disk(0.5 * s, 3.0 * s, 3, R1=20.0 * s, law="neo-hookean")
+    assert np.array_equal(a.triangles, b.triangles) and np.allclose(b.points, s * a.points, rtol=0, atol=1e-12)
+    n_pos = 3 * a.mesh.n_vertices
+    rng = np.random.default_rng(1)
+    q = a.model.full(a.model.initial_unknowns())
+    q[:n_pos] += 0.025 * rng.standard_normal(n_pos)           # a wrinkled, sheared state of a
+    q[n_pos:] += 0.1 * rng.standard_normal(len(q) - n_pos)
+    qb = q.copy()
+    qb[:n_pos] *= s
+    ua, ub = q[a.model.free], qb[b.model.free]
+    for d in (a, b):
+        d.problem.set_parameter(0.3)
+    assert b.model.energy(ub) == pytest.approx(s ** 3 * a.model.energy(ua), rel=1e-12)
+    ga, gb = a.model.gradient(ua), b.model.gradient(ub)
+    pos = np.flatnonzero(a.model.free) < n_pos
+    np.testing.assert_allclose(gb[pos], s ** 2 * ga[pos], rtol=0, atol=1e-12 * np.abs(s ** 2 * ga).max())
+    np.testing.assert_allclose(gb[~pos], s ** 3 * ga[~pos], rtol=0, atol=1e-12 * np.abs(s ** 3 * ga).max())
