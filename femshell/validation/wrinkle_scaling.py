@@ -114,7 +114,7 @@ _LAST = {}
 
 
 def _saved_run(checkpoint, meta, keys=()):
-    """(state, saved meta) of the checkpoint a run resumes from (or its ``.prev``), None when there is none.
+    """The saved state of the checkpoint a run resumes from (or its ``.prev``), None when there is none.
     ValueError naming the difference when the saved meta differs from ``meta`` in any of its keys or in ``keys``
     (keys the current run may leave out of its meta)."""
     if checkpoint is None or not (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
@@ -123,7 +123,7 @@ def _saved_run(checkpoint, meta, keys=()):
     differ = {k: (saved.get(k), meta.get(k)) for k in {*meta, *keys} if saved.get(k) != meta.get(k)}
     if differ:
         raise ValueError(f"{checkpoint} belongs to another run (saved, now: {differ}); remove it to start afresh")
-    return state, saved
+    return state
 
 
 def seed_shape(disk, seed=SEED, waves=SEED_WAVES, modes=SEED_MODES):
@@ -165,9 +165,8 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
             "eps": float(eps), "n_steps": n_steps, "seed": seed, "waves": waves, "dome": SEED_DOME, "modes": modes,
             "edge_unknown": EDGE_UNKNOWN}
     done = 0
-    resumed = _saved_run(checkpoint, meta)
-    if resumed is not None:
-        state = resumed[0]
+    state = _saved_run(checkpoint, meta)
+    if state is not None:
         u, failures, done = state["u"], state["failures"], state["step"]
     for step, e in enumerate(np.linspace(0.0, eps, n_steps + 1)[1:], start=1):
         if step <= done:
@@ -245,9 +244,8 @@ def growth_history(h, eps_end, resolution, law, snapshots=(), checkpoint=None, l
             "refine_inside": True, "edge_unknown": EDGE_UNKNOWN}
     if snapshots:
         meta["snapshots"] = snapshots
-    resumed = _saved_run(checkpoint, meta, keys=("snapshots",))
-    if resumed is not None:
-        state = resumed[0]
+    state = _saved_run(checkpoint, meta, keys=("snapshots",))
+    if state is not None:
         d = Disk(h, R2, resolution, law=law, refine_inside=True)
         n_unknowns = len(d.model.initial_unknowns())
         if len(state["u"]) != n_unknowns:
