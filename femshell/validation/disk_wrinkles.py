@@ -33,9 +33,13 @@ The problem has no length of its own: stretching energy scales as h · area and 
 h³ · curvature² · area, so the disk scaled by s with its thickness has s³ times the energy at the same ε
 (a test checks it to round-off) and the same states. Its ε_c and counts depend on R2/h, R1/R2 and ε
 only. The outer radius matters: at h = 0.25, R2 = 3 (resolution 8) ε_c falls from 0.00344 at
-R1 = 4 R2 to 0.00312, 0.00282, 0.00253 and 0.00222 at R1 = 5, 6.7, 10 and 20 R2. The buckled dome's
-far field reaches the free edge, so "far away" is not converged at the issue's 5 R2, and grids that
-mix R1/R2 (20/R2 for R2 ≤ 4, 5 beyond) compare states of slightly different problems.
+R1 = 4 R2 to 0.00312, 0.00282, 0.00253 and 0.00222 at R1 = 5, 6.7, 10 and 20 R2: linear in R2/R1,
+ε_c = 0.00192 + 0.00604 R2/R1 (residuals ≤ 1.1e-5). The buckled dome's far field reaches the free edge, so
+"far away" converges only as 1/R1: at the issue's 5 R2 ε_c is 63 % above its R1 → ∞ limit, at 10 R2 31 %.
+The levels keep the issue's 5 R2 all the same: with R1 = max(20, 10 R2) (a run of the full level,
+2026-11-29) the two disks of R2/h = 12 (h = 2, R2 = 24 and h = 0.25, R2 = 3) rise into a deeper dome whose
+rim folds by more than their resolution 24 carries (a mid-edge normal at 88.8°, not a result; on resolution 32
+the thin one is resolved, 6 wrinkles), so a larger R1 needs a finer rim with it (docs/disk-crosscheck.md).
 
 1. **Flat branch**: pseudo-arclength continuation in ε
    (:class:`~femshell.solvers.continuation.GrowthParameter`) with the inertia of the constrained
@@ -425,7 +429,7 @@ def loss_of_stability(d, branch):
 
 
 def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=False, eps_end=EPS_END,
-           snapshots=()):
+           snapshots=(), R1=None):
     """Flat branch, branch switching, secondary switches, stable state at ε = ``eps_end`` (module docstring;
     the paper's 0.5 by default).
 
@@ -433,7 +437,8 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
     law (:class:`~femshell.shell.Material`); ``snapshots``: growth strains below ``eps_end`` at which the
     relaxation (step 3) also stops and records its state, so that one growth history gives the states at
     several ε (a snapshot that falls on a followed branch, before the relaxation starts, is not recorded:
-    follow to that ε instead, the continuation stops there exactly).
+    follow to that ε instead, the continuation stops there exactly); ``R1``: the outer radius (default
+    :func:`outer_radius`).
     Returns a dict: disk, branches (list of Branch), switch_points (SpecialPoint list), folds (the
     fold SpecialPoints where the shell snapped), failed (why a switch failed, or None), first (the
     first loss of stability of the flat state or None), n_first, u, w, count, spectrum, rim
@@ -450,7 +455,7 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
     t0 = time.perf_counter()
     log = log or _quiet
     clog = log if verbose else None
-    d = Disk(h, R2, resolution, law=law, refine_inside=refine_inside)
+    d = Disk(h, R2, resolution, R1=R1, law=law, refine_inside=refine_inside)
     prob = d.problem
     branch = _follow_branch(d, None, log=clog, eps_end=eps_end)
     branches, switches = [branch], []
@@ -640,8 +645,9 @@ def plot(rows, fig):
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=6)
     pick = results if len(results) <= 3 else [results[i] for i in (0, len(results) // 2, len(results) - 1)]
-    thick = [x for x in results if x[0] == 2.0]
-    thin = [x for x in results if x[0] != 2.0]
+    # the views show states that count (resolved stable equilibria) where there are any
+    thick = [x for x in results if x[0] == 2.0 and x[2]["result"]] or [x for x in results if x[0] == 2.0]
+    thin = [x for x in results if x[0] != 2.0 and x[2]["result"]] or [x for x in results if x[0] != 2.0]
     if thick and thin and len(results) > 3:
         # the thick disk at the paper's thin R2 (a dome where the paper has 3), the largest thick and thin ones
         mid = [x for x in thick if x[1] == PAPER_THIN[1]] or [thick[len(thick) // 2]]
@@ -661,5 +667,6 @@ def plot(rows, fig):
         a.set_aspect("equal")
         a.set_xticks([])
         a.set_yticks([])
-        a.set_title(f"h={h:g} R2={R2:g}: {r['count']} wrinkles", fontsize=7)
+        a.set_title(f"h={h:g} R2={R2:g}: {r['count']} wrinkles" + ("" if r["result"] else " (not a result)"),
+                    fontsize=7)
         fig.colorbar(tpc, ax=a, fraction=0.046, pad=0.02).ax.tick_params(labelsize=5)
