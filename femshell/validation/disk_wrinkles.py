@@ -645,9 +645,12 @@ def plot(rows, fig):
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=6)
     pick = results if len(results) <= 3 else [results[i] for i in (0, len(results) // 2, len(results) - 1)]
-    # the views show states that count (resolved stable equilibria) where there are any
-    thick = [x for x in results if x[0] == 2.0 and x[2]["result"]] or [x for x in results if x[0] == 2.0]
-    thin = [x for x in results if x[0] != 2.0 and x[2]["result"]] or [x for x in results if x[0] != 2.0]
+    def counted_first(cases):
+        """The cases whose states count (resolved stable equilibria), or all of them when none does."""
+        return [x for x in cases if x[2]["result"]] or cases
+
+    thick = counted_first([x for x in results if x[0] == 2.0])
+    thin = counted_first([x for x in results if x[0] != 2.0])
     if thick and thin and len(results) > 3:
         # the thick disk at the paper's thin R2 (a dome where the paper has 3), the largest thick and thin ones
         mid = [x for x in thick if x[1] == PAPER_THIN[1]] or [thick[len(thick) // 2]]
