@@ -132,3 +132,58 @@ def test_the_disk_has_no_length_of_its_own():
     pos = np.flatnonzero(a.model.free) < n_pos
     np.testing.assert_allclose(gb[pos], s ** 2 * ga[pos], rtol=0, atol=1e-12 * np.abs(s ** 2 * ga).max())
     np.testing.assert_allclose(gb[~pos], s ** 3 * ga[~pos], rtol=0, atol=1e-12 * np.abs(s ** 3 * ga).max())
+
+
+def test_disk_end_state_is_the_lowest_energy_result_of_the_relaxations():
+    from femshell.validation.disk_wrinkles import select_lowest
+
+    c = [dict(energy=2.0, result=True), dict(energy=1.0, result=False), dict(energy=1.5, result=True),
+         dict(energy=1.7, result=True)]
+    assert select_lowest(c) == 2                   # the over-folded or unstable lower state does not count
+    assert select_lowest([dict(energy=2.0, result=False), dict(energy=1.0, result=False)]) == 0
+
+
+def test_disk_relaxations_start_from_the_snap_pushed_both_ways_along_each_critical_mode():
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    d = SimpleNamespace(h=2.0, n_vertices=2)
+    modes = np.array([[1.0, 0.0], [-0.5, 0.0], [0.0, 4.0], [0.0, 0.0], [0.0, 0.0], [0.0, -2.0], [9.0, 9.0]])
+    sp = SimpleNamespace(u=np.zeros(7), modes=modes)
+    starts = dw.pushed_starts(d, sp, 5)
+    assert [p for p, _ in starts] == ["+phi1", "-phi1", "+phi2", "-phi2"]    # two per mode computed, at most
+    a = dw.SWITCH_AMPLITUDE * d.h
+    np.testing.assert_allclose(starts[0][1], a * modes[:, 0])                  # largest position component a
+    np.testing.assert_allclose(starts[3][1], -a * modes[:, 1] / 4.0)
+    assert [p for p, _ in dw.pushed_starts(d, sp, 1)] == ["+phi1"]
+    with pytest.raises(ValueError, match="pushes"):
+        dw.follow(2.0, 3.0, 3, pushes=0)
+
+
+def test_disk_cases_solved_in_worker_processes_are_checkpointed_and_read_back(tmp_path, monkeypatch):
+    """The full level's path: cases solved two at once in spawned workers, each saved; a second call reads them
+    back without solving, the same states as solving here; a checkpoint of another setting is refused."""
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    cfg = {"cases": [(2.0, 3.0, 3), (2.0, 4.0, 3)], "refine_inside": False, "law": "svk", "outer_factor": 5.0,
+           "pushes": 2}
+    monkeypatch.setenv("FEMSHELL_THREADS", "2")
+    lines = []
+    solved = dw.solve_cases(cfg, tmp_path, log=lines.append)
+    assert "2 at once" in lines[0] and len(list(tmp_path.glob("case-*.npz"))) == 2
+    c = cfg["cases"][1]
+    d, u, rec = solved[c]
+    here = dw.solve_case(dw._case_meta(*c, cfg))                     # the same case solved in this process
+    np.testing.assert_allclose(u, here[1], rtol=0, atol=1e-9 * np.abs(u).max())
+    assert rec["count"] == here[2]["count"] and rec["result"] == here[2]["result"]
+    assert rec["residual"] <= dw.EQUILIBRIUM_RTOL and d.n_vertices == here[0].n_vertices
+    monkeypatch.setattr(dw, "follow", lambda *a, **k: pytest.fail("a saved case was solved again"))
+    again = dw.solve_cases(cfg, tmp_path)
+    assert all(np.array_equal(again[c][1], solved[c][1]) for c in cfg["cases"])
+    with pytest.raises(ValueError, match="pushes"):
+        dw.solve_cases(dict(cfg, pushes=4), tmp_path)

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from ..io import load_checkpoint
 from ..solvers.linear import factorize
 
 
@@ -50,3 +51,16 @@ def order_row(quantity, rows):
     sel = [r for r in rows if r.quantity.split(" @")[0] == quantity and r.rel_error is not None]
     p, k = finest_order([r.n_vertices for r in sel], [r.rel_error for r in sel])
     return [] if p is None else [Row(f"observed order of {quantity} (finest {k} meshes)", p)]
+
+
+def saved_state(checkpoint, meta, keys=()):
+    """The saved state of the checkpoint a run resumes from (or its ``.prev``), None when there is none.
+    ValueError naming the difference when the saved meta differs from ``meta`` in any of its keys or in ``keys``
+    (keys the current run may leave out of its meta)."""
+    if checkpoint is None or not (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
+        return None
+    state, saved = load_checkpoint(checkpoint)
+    differ = {k: (saved.get(k), meta.get(k)) for k in {*meta, *keys} if saved.get(k) != meta.get(k)}
+    if differ:
+        raise ValueError(f"{checkpoint} belongs to another run (saved, now: {differ}); remove it to start afresh")
+    return state

@@ -24,10 +24,10 @@ Procedure (per case h, R2)
 --------------------------
 Mesh: :func:`femshell.linear_buckling._disk_mesh` (gmsh, the circle r = R2 in the mesh edges,
 edge R2/``resolution`` over the whole grown region r < R2, coarser outwards; the full level takes
-resolution 8 at h = 2 and R2 ≤ 4.5, min(2 R2, 24) beyond, and edge 0.125 at h = 0.25, see
-``LEVELS``), R1 = max(20, 5 R2) (issue #4 asks R1 ≥ 5 R2; 20 keeps the free edge ≥ 10 h away for h = 2),
-rigid motions removed by six pinned position components (:class:`~femshell.shell.ShellModel` does this for
-a shell without supports).
+resolution 8 at h = 2 and R2 ≤ 4.5, min(2 R2, 24) beyond, edge 0.125 at h = 0.25, and resolution 32 at
+R2/h = 12, see ``LEVELS``), R1 = max(20, f R2) with f = 10 on the full level and the issue's 5 on the quick
+one (issue #4 asks R1 ≥ 5 R2; 20 keeps the free edge ≥ 10 h away for h = 2), rigid motions removed by six
+pinned position components (:class:`~femshell.shell.ShellModel` does this for a shell without supports).
 
 The problem has no length of its own: stretching energy scales as h · area and bending as
 h³ · curvature² · area, so the disk scaled by s with its thickness has s³ times the energy at the same ε
@@ -36,10 +36,12 @@ only. The outer radius matters: at h = 0.25, R2 = 3 (resolution 8) ε_c falls fr
 R1 = 4 R2 to 0.00312, 0.00282, 0.00253 and 0.00222 at R1 = 5, 6.7, 10 and 20 R2: linear in R2/R1,
 ε_c = 0.00192 + 0.00604 R2/R1 (residuals ≤ 1.1e-5). The buckled dome's far field reaches the free edge, so
 "far away" converges only as 1/R1: at the issue's 5 R2 ε_c is 63 % above its R1 → ∞ limit, at 10 R2 31 %.
-The levels keep the issue's 5 R2 all the same: with R1 = max(20, 10 R2) (a run of the full level,
-2026-11-29) the two disks of R2/h = 12 (h = 2, R2 = 24 and h = 0.25, R2 = 3) rise into a deeper dome whose
-rim folds by more than their resolution 24 carries (a mid-edge normal at 88.8°, not a result; on resolution 32
-the thin one is resolved, 6 wrinkles), so a larger R1 needs a finer rim with it (docs/disk-crosscheck.md).
+So the full level takes R1 = max(20, 10 R2) (since 2026-12-01; chosen from that line before any count of it
+was known). There the two disks of R2/h = 12 (h = 2, R2 = 24 and h = 0.25, R2 = 3) rise into a deeper dome
+whose rim folds by more than resolution 24 carries (a run of 2026-11-29: a mid-edge normal at 88.8°, not a
+result), so they take resolution 32, on which the thin one was resolved at R1 = 10 and 20 R2
+(docs/disk-crosscheck.md). With the issue's 5 R2 the counting circle of h = 2, R2 = 24 saw the surrounding
+sheet's saddle (count 2) where the rim had 6 lobes.
 
 1. **Flat branch**: pseudo-arclength continuation in ε
    (:class:`~femshell.solvers.continuation.GrowthParameter`) with the inertia of the constrained
@@ -62,7 +64,13 @@ the thin one is resolved, 6 wrinkles), so a larger R1 needs a finer rim with it 
 3. **Final state**: if the last branch reaches ε = 0.5 unstable (or stops early), the state is
    relaxed to a stable equilibrium at ε = 0.5 by Newton with saddle escape
    (:func:`~femshell.solvers.newton.minimize`, ``stable=True``), after stepping ε to 0.5 if
-   needed; this is recorded ("relaxed"). It is then checked independently: it must be an
+   needed; this is recorded ("relaxed"). Where the shell snaps (a fold, or a switch that failed) the
+   relaxation starts from the critical point pushed along its mode; past the snap lie several stable
+   states of nearly the same energy (measured: five within 0.34 % at h = 0.25, R2 = 2, counts 3 to 5), and
+   which one a single relaxation reaches is decided by round-off (the same code gave 4 on one machine and 5 on
+   another). So the levels relax from ``pushes`` = 4 starts, ±φ₁ and ±φ₂ (a double point's cos/sin pair), and
+   keep the lowest-energy state that is a result (:func:`select_lowest`; the rows list each start's count).
+   Each end state is then checked independently: it must be an
    equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of the flat disk's at ε = 0.5; a relaxation whose
    Newton failed keeps its last iterate), stable (no negative eigenvalue of the constrained
    Hessian) and resolved: no mid-edge normal turned by ``FOLD_LIMIT_DEG`` (80°) or more from its
@@ -74,6 +82,10 @@ the thin one is resolved, 6 wrinkles), so a larger R1 needs a finer rim with it 
    :func:`femshell.analysis.count_wrinkles` (dominant Fourier mode k ≥ 2 of w(φ); 0 when the
    non-axisymmetric part is below ``REL_TOL`` of the amplitude: a dome, possibly shifted or
    tilted, k = 1, is not a wrinkle).
+
+The full level takes hours: each finished case is checkpointed in ``OUT/disk-wrinkles-checkpoints``, a later
+call reads it back instead of solving again, and the cases are solved in two worker processes at once
+(:func:`solve_cases`).
 
 Rows: per case the count at ε = 0.5 (the paper's count in the quantity text; no reference,
 no tolerance: the paper is a spring network and our continuum numbers need not agree), the
@@ -108,21 +120,27 @@ springs, Hookean in length, do not soften in compression either). Passing ``law=
 
 from __future__ import annotations
 
+import json
 import math
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 
 from ..analysis import azimuthal_power, azimuthal_spectrum, count_wrinkles
 from ..linear_buckling import _disk_mesh
+from ..io import save_checkpoint
 from ..mesh.surface import SurfaceMesh
 from ..shell import Material, RestState, ShellModel
+from ..shell.element import EDGE_UNKNOWN, element_threads
 from ..shell.model import FOLD_LIMIT_DEG
 from ..shell.rest_state import metric
 from ..solvers.continuation import ContinuationError, GrowthParameter, continuation, switch_branch
 from ..solvers.linear import LinearSolverError, factorize
 from ..solvers.newton import NewtonError, minimize
-from .framework import Row, timed
+from .common import saved_state
+from .framework import Row
 
 NAME = "disk-wrinkles"
 DESCRIPTION = ("free disk, inner circle r < R2 grows by eps = 0 -> 0.5 (thinner h/(1+eps)^2), nu = 0.5: "
@@ -140,18 +158,24 @@ NU = 0.5
 #: the membrane law (module docstring: SVK has no stable state at h = 2, R2 <= 1.5). The thin disks need the
 #: grown region refined throughout: their rim folds into lobes across r = 0.6-1.0 R2, and on the band mesh
 #: (edges growing to 0.4 at 0.7 R2) the folds run to the 90-degree limit or relax into a dome (the thin case
-#: before 2026-11-28: a dome with 7 % lobes, count 0). h = 0.25 takes edge 0.125 at every R2; at R2 = 4 that
+#: before 2026-11-28: a dome with 7 % lobes, count 0). h = 0.25 takes edge 0.125 up to R2 = 2.5; at R2 = 4 that
 #: mesh does not carry the folds (measured: 3 normals at 90 degrees), so the thin series stops at R2 = 3
 #: (docs/disk-crosscheck.md). h = 2 continues past the paper's range to R2 = 24 (R2/h = 12, the thin disk's at
 #: R2 = 3), because our h = 2 disk is a dome up to R2 = 8 and wrinkles from R2 = 10 (edge 0.5 = h/4 at R2 = 8-12,
-#: resolution 24 beyond). ``rise_required`` makes the rise with R2 and with 1/h a pass criterion, as issue 4 asks
+#: resolution 24 at 16). Both disks of R2/h = 12 take resolution 32: with R1 = 10 R2 their deeper dome folds past
+#: what 24 carries. ``rise_required`` makes the rise with R2 and with 1/h a pass criterion, as issue 4 asks;
+#: ``outer_factor``: R1 = max(20, outer_factor · R2); ``pushes``: relaxation starts where the shell snaps
+#: (:func:`follow`)
 LEVELS = {
-    "quick": {"cases": [(2.0, 3.0, 5), (2.0, 4.0, 5)], "refine_inside": True, "law": "svk"},
+    "quick": {"cases": [(2.0, 3.0, 5), (2.0, 4.0, 5)], "refine_inside": True, "law": "svk", "outer_factor": 5.0,
+              "pushes": 4},
     "full": {"cases": [(2.0, r, 8) for r in (1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5)]
-             + [(2.0, 8.0, 16), (2.0, 10.0, 20), (2.0, 12.0, 24), (2.0, 16.0, 24), (2.0, 24.0, 24)]
-             + [(0.25, 2.0, 16), (0.25, 2.5, 20), (0.25, 3.0, 24)],
-             "refine_inside": True, "law": "neo-hookean", "rise_required": True},
+             + [(2.0, 8.0, 16), (2.0, 10.0, 20), (2.0, 12.0, 24), (2.0, 16.0, 24), (2.0, 24.0, 32)]
+             + [(0.25, 2.0, 16), (0.25, 2.5, 20), (0.25, 3.0, 32)],
+             "refine_inside": True, "law": "neo-hookean", "rise_required": True, "outer_factor": 10.0, "pushes": 4},
 }
+#: R1 / R2 of the free edge where R2 > 20 / OUTER_FACTOR (:func:`outer_radius`; the levels set their own)
+OUTER_FACTOR = 5.0
 #: the paper's R2 where the count at h = 2 becomes 2, 3, 4, the R2 its h = 2 counts span (issue 4's grid),
 #: and its count at h = 0.25, R2 = 3
 PAPER_CHANGES = {2: 1.95, 3: 2.9, 4: 3.9}
@@ -190,9 +214,10 @@ def paper_count(h, R2):
     return n
 
 
-def outer_radius(R2):
-    """R1 = max(20, 5 R2): the free edge ≥ 5 R2 and ≥ 10 h (h = 2) away from the grown region."""
-    return max(20.0, 5.0 * R2)
+def outer_radius(R2, factor=OUTER_FACTOR):
+    """R1 = max(20, ``factor`` · R2): the free edge ≥ ``factor`` · R2 (issue 4: at least 5) and ≥ 10 h (h = 2)
+    away from the grown region."""
+    return max(20.0, factor * R2)
 
 
 def eps_scale(h, R2):
@@ -428,8 +453,48 @@ def loss_of_stability(d, branch):
                         info={"mode_tangent_cosine": cosine})
 
 
+def pushed_starts(d, sp, pushes):
+    """Relaxation starts where the shell snaps at the special point ``sp``: [(push, u)] with u = sp.u ± a φ_j,
+    in the order +φ₁, −φ₁, +φ₂, … (``pushes`` of them, at most two per critical mode computed), φ_j scaled to a
+    largest position component of ``SWITCH_AMPLITUDE`` · h."""
+    out = []
+    for j in range(sp.modes.shape[1]):
+        phi = sp.modes[:, j]
+        step = SWITCH_AMPLITUDE * d.h * phi / np.abs(phi[: 3 * d.n_vertices]).max()
+        out += [(f"+phi{j + 1}", sp.u + step), (f"-phi{j + 1}", sp.u - step)]
+    return out[:pushes]
+
+
+def _relax(prob, u, eps, eps_end, snapshots, log):
+    """Stable Newton from (u, ε) to ``eps_end`` in ε steps of at most 0.05 (and at the snapshots between):
+    (u at ``eps_end``, {snapshot ε: u}). A step whose Newton fails keeps its last iterate (the final check
+    reports it)."""
+    steps = np.linspace(eps, eps_end, max(2, int(math.ceil(abs(eps_end - eps) / 0.05)) + 1))[1:]
+    wanted = [e for e in snapshots if eps < e < eps_end]
+    taken = {}
+    for e in sorted(set(steps.tolist()) | set(wanted)):
+        prob.set_parameter(float(e))
+        try:
+            u = minimize(prob, u, stable=True, max_iter=200, log=None).u
+        except NewtonError as exc:      # keep the last iterate: the stability row reports it
+            log(f"    stable Newton failed at eps = {e:.4g}: {exc}")
+            u = exc.result.u if getattr(exc, "result", None) is not None else u
+        if e in wanted:
+            taken[e] = u.copy()
+    return u, taken
+
+
+def select_lowest(candidates):
+    """Index of the end state among relaxation ``candidates`` (dicts with energy and result): the lowest-energy
+    one that is a result (a resolved stable equilibrium), else the first. Several minima of nearly the same energy
+    exist past a snap (measured within 0.34 % at h = 0.25, R2 = 2, their counts 3 to 5), and which one a single
+    relaxation reaches is decided by round-off; the lowest of several is the shell's most likely state."""
+    ok = [i for i, c in enumerate(candidates) if c["result"]]
+    return min(ok, key=lambda i: candidates[i]["energy"]) if ok else 0
+
+
 def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=False, eps_end=EPS_END,
-           snapshots=(), R1=None):
+           snapshots=(), R1=None, pushes=1):
     """Flat branch, branch switching, secondary switches, stable state at ε = ``eps_end`` (module docstring;
     the paper's 0.5 by default).
 
@@ -438,15 +503,23 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
     relaxation (step 3) also stops and records its state, so that one growth history gives the states at
     several ε (a snapshot that falls on a followed branch, before the relaxation starts, is not recorded:
     follow to that ε instead, the continuation stops there exactly); ``R1``: the outer radius (default
-    :func:`outer_radius`).
+    :func:`outer_radius`); ``pushes``: where the shell snaps (a fold, or a branch switch that failed), the
+    relaxation starts from the critical point pushed along its critical modes, in the order +φ₁, −φ₁, +φ₂, −φ₂, …
+    (at most twice the modes computed there); each start is relaxed to ``eps_end`` and checked
+    (:meth:`Disk.final_check`), and the end state is the lowest-energy one that is a result (:func:`select_lowest`;
+    the first start's when none is). ``pushes=1`` is one relaxation along +φ₁.
     Returns a dict: disk, branches (list of Branch), switch_points (SpecialPoint list), folds (the
     fold SpecialPoints where the shell snapped), failed (why a switch failed, or None), first (the
     first loss of stability of the flat state or None), n_first, u, w, count, spectrum, rim
     (:meth:`Disk.rim_mode`), relaxed,
     n_negative_final (None when the Hessian is not finite), residual (:meth:`Disk.relative_residual` at
     ``eps_end``), over_folded, largest_turn, result (a resolved stable equilibrium: the state counts), energy, wall_s,
-    snapshots ({ε: u} of the snapshots the relaxation passed).
+    snapshots ({ε: u} of the snapshots the relaxation passed), candidates (one dict per relaxation start: push,
+    count, energy, result, n_negative, residual, largest_turn; one entry, push None, when no relaxation was needed)
+    and chosen (the index of the end state among them).
     """
+    if not (isinstance(pushes, int) and not isinstance(pushes, bool) and pushes >= 1):
+        raise ValueError(f"pushes must be a whole number >= 1 (relaxation starts), got {pushes!r}")
     if not (isinstance(eps_end, (int, float)) and not isinstance(eps_end, bool) and 0.0 < eps_end <= 1.0):
         raise ValueError(f"eps_end must be a growth strain in (0, 1], got {eps_end!r}")
     snapshots = sorted({float(e) for e in snapshots})
@@ -474,6 +547,7 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
     end_stable = branch.status == "lam_stop" and [r for r in branch.rows if not r["special"]][-1]["n_negative"] == 0
     failed = None
     folds = []
+    starts = [(None, u)]        # (push, start) of the relaxations: the branch's last point unless the shell snaps
     while sp is not None and len(switches) <= MAX_SWITCHES:
         if sp.kind == "fold":
             folds.append(sp)
@@ -488,14 +562,14 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
                 failed = f"branch switching at eps = {sp.parameter:.5g} failed ({exc})"
                 log("    " + failed)
         if sp.kind == "fold" or failed:
-            # no branch to follow from here: relax from the critical point pushed along its mode
-            phi = sp.modes[:, 0]
-            u = sp.u + SWITCH_AMPLITUDE * d.h * phi / np.abs(phi[: 3 * d.n_vertices]).max()
+            # no branch to follow from here: relax from the critical point pushed along its modes
+            starts = pushed_starts(d, sp, pushes)
             eps, end_stable = sp.parameter, False
             break
         branches.append(branch)
         rows = [r for r in branch.rows if not r["special"]]
         u, eps = branch.last
+        starts = [(None, u)]
         end_stable = branch.status == "lam_stop" and rows[-1]["n_negative"] == 0
         sp = loss_of_stability(d, branch)
         log(f"    {branch.label} at eps = {switches[-1].parameter:.5g}: {branch.status}, {len(rows)} points, "
@@ -503,23 +577,26 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
             f"{rows[-1]['wrinkles']}" + (f"; loses stability at eps = {sp.parameter:.5g} ({sp.multiplicity} "
                                          f"mode(s), n = {d.mode_wavenumber(sp.modes)})" if sp else "")
             + f" ({time.perf_counter() - t0:.0f} s)")
-    relaxed = False
-    taken = {}
-    if not (abs(eps - eps_end) < 1e-12 and end_stable):
-        relaxed = True
-        steps = np.linspace(eps, eps_end, max(2, int(math.ceil(abs(eps_end - eps) / 0.05)) + 1))[1:]
-        wanted = [e for e in snapshots if eps < e < eps_end]
-        for e in sorted(set(steps.tolist()) | set(wanted)):
-            prob.set_parameter(float(e))
-            try:
-                u = minimize(prob, u, stable=True, max_iter=200, log=None).u
-            except NewtonError as exc:      # keep the last iterate: the stability row reports it
-                log(f"    stable Newton failed at eps = {e:.4g}: {exc}")
-                u = exc.result.u if getattr(exc, "result", None) is not None else u
-            if e in wanted:
-                taken[e] = u.copy()
-        log(f"    relaxed by stable Newton from eps = {eps:.4g} to {eps_end:g}")
-    check = d.final_check(u, eps_end, log=log)
+    relaxed = not (abs(eps - eps_end) < 1e-12 and end_stable)
+    candidates, ends = [], []
+    for push, u0 in starts:
+        u, taken = _relax(prob, u0, eps, eps_end, snapshots, log) if relaxed else (u0, {})
+        check = d.final_check(u, eps_end, log=log)
+        candidates.append(dict(push=push, count=d.count(d.deflection(u)), energy=float(d.model.energy(u)),
+                               result=check["result"], n_negative=check["n_negative"], residual=check["residual"],
+                               largest_turn=check["largest_turn"]))
+        ends.append((u, taken, check))
+        if push is not None:
+            c = candidates[-1]
+            log(f"    push {push}: {c['count']} wrinkles, energy {c['energy']:.8g}, "
+                + ("a resolved stable equilibrium" if c["result"] else "not a result")
+                + f" ({time.perf_counter() - t0:.0f} s)")
+    if relaxed:
+        log(f"    relaxed by stable Newton from eps = {eps:.4g} to {eps_end:g}"
+            + (f" from {len(starts)} starts" if len(starts) > 1 else ""))
+    chosen = select_lowest(candidates)
+    u, taken, check = ends[chosen]
+    check = dict(check)
     n_neg = check.pop("n_negative")
     w = d.deflection(u)
     out = dict(disk=d, branches=branches, switch_points=switches, folds=folds, first=first, n_first=n_first, u=u,
@@ -527,7 +604,8 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
                stretch_first=stretch_first,
                w=w, count=d.count(w), spectrum=d.spectrum(w), rim=d.rim_mode(w), relaxed=relaxed,
                n_negative_final=n_neg, **check,
-               energy=float(d.model.energy(u)), wall_s=time.perf_counter() - t0, snapshots=taken)
+               energy=float(d.model.energy(u)), wall_s=time.perf_counter() - t0, snapshots=taken,
+               candidates=candidates, chosen=chosen)
     log(f"    eps = {eps_end:g}: {out['count']} wrinkles, {n_neg} negative eigenvalues, residual {out['residual']:.2g} of the "
         f"flat disk's, energy {out['energy']:.8g}, "
         f"{out['wall_s']:.0f} s")
@@ -543,50 +621,164 @@ def warm_up():
     factorize(d.model.hessian(u), kind="symmetric_indefinite").free()
 
 
-def run(level, log=None):
+def case_record(r):
+    """The numbers of one :func:`follow` result that the case's rows use (what its checkpoint keeps beside u)."""
+    first = r["first"]
+    return dict(count=int(r["count"]), rim=[int(r["rim"][0]), float(r["rim"][1])],
+                eps_first=None if first is None else float(first.parameter),
+                multiplicity=None if first is None else int(first.multiplicity),
+                n_first=None if r["n_first"] is None else int(r["n_first"]),
+                stretch_first=None if r["stretch_first"] is None else float(r["stretch_first"]),
+                switches=len(r["switch_points"]), folds=len(r["folds"]), relaxed=bool(r["relaxed"]),
+                n_negative_final=r["n_negative_final"], residual=float(r["residual"]),
+                over_folded=int(r["over_folded"]), largest_turn=float(r["largest_turn"]), result=bool(r["result"]),
+                energy=float(r["energy"]), wall_s=float(r["wall_s"]), candidates=r["candidates"],
+                chosen=int(r["chosen"]))
+
+
+def _case_meta(h, R2, resolution, cfg):
+    """What a case's checkpoint must agree on with the run that reads it back."""
+    return {"h": float(h), "R2": float(R2), "resolution": int(resolution), "R1": outer_radius(R2, cfg["outer_factor"]),
+            "law": cfg["law"], "refine_inside": bool(cfg["refine_inside"]), "pushes": int(cfg["pushes"]),
+            "eps_end": EPS_END, "edge_unknown": EDGE_UNKNOWN}
+
+
+def _case_disk(meta):
+    return Disk(meta["h"], meta["R2"], meta["resolution"], R1=meta["R1"], law=meta["law"],
+                refine_inside=meta["refine_inside"])
+
+
+def solve_case(meta, checkpoint=None, log=None):
+    """One case: (disk, u at ε = 0.5, :func:`case_record`). With ``checkpoint`` (an .npz path) a finished case is
+    read back from it (no solve; one of another case or setting is refused, ValueError naming the difference), and
+    a solved one is saved there."""
+    state = saved_state(checkpoint, meta)
+    if state is not None:
+        d = _case_disk(meta)
+        if len(state["u"]) != len(d.model.initial_unknowns()):
+            raise ValueError(f"{checkpoint} has {len(state['u'])} unknowns, this mesh {len(d.model.initial_unknowns())}: "
+                             "another mesh generator made it; remove it to start afresh")
+        return d, state["u"], json.loads(str(state["record"]))
+    r = follow(meta["h"], meta["R2"], meta["resolution"], log=log, law=meta["law"],
+               refine_inside=meta["refine_inside"], R1=meta["R1"], pushes=meta["pushes"])
+    record = case_record(r)
+    if checkpoint is not None:
+        try:        # a state or record with a NaN is not saved (its rows fail): the next call solves it again
+            save_checkpoint(checkpoint, {"u": r["u"], "record": json.dumps(record, allow_nan=False)}, meta)
+        except ValueError as exc:
+            if log:
+                log(f"    not checkpointed: {exc}")
+    return r["disk"], r["u"], record
+
+
+def _solve_case_in_worker(meta, checkpoint, echo):
+    """:func:`solve_case` in a worker process; it prints its log lines, prefixed by the case."""
+    tag = f"[h={meta['h']:g} R2={meta['R2']:g}]"
+    solve_case(meta, checkpoint, log=(lambda m: print(f"{tag} {m.strip()}", flush=True)) if echo else None)
+
+
+#: the thread counts a case worker runs with: each worker keeps to one core, the cases share the cores
+WORKER_ENV = {"FEMSHELL_THREADS": "1", "MKL_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+def solve_cases(cfg, checkpoints=None, log=None):
+    """Every case of a level: {(h, R2, resolution): (disk, u, record)}.
+
+    Without ``checkpoints`` (a directory) the cases are solved here one after the other. With it each finished case
+    is saved there (``case-h…-R2…-res….npz``) and read back by a later call, and the cases not yet saved are solved
+    in as many worker processes as :func:`~femshell.shell.element.element_threads` gives (``FEMSHELL_THREADS=1``:
+    one after the other, in this process), each on one core (``WORKER_ENV``), largest R2/h first."""
+    metas = {c: _case_meta(*c, cfg) for c in cfg["cases"]}
+    if checkpoints is None:
+        return {c: solve_case(m, log=log) for c, m in metas.items()}
+    path = {c: checkpoints / f"case-h{c[0]:g}-R2{c[1]:g}-res{c[2]}.npz" for c in cfg["cases"]}
+    todo = sorted((c for c in cfg["cases"] if saved_state(path[c], metas[c]) is None),
+                  key=lambda c: (-c[1] / c[0], -c[2]))
+    workers = min(len(todo), element_threads())
+    if todo and log:
+        log(f"  {len(todo)} of {len(metas)} cases to solve ({len(metas) - len(todo)} read back from {checkpoints})"
+            + (f", {workers} at once" if workers > 1 else ""))
+    if workers > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        saved_env = {k: os.environ.get(k) for k in WORKER_ENV}
+        os.environ.update(WORKER_ENV)           # a spawned worker reads these when its libraries load
+        try:
+            with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                     initializer=warm_up) as pool:
+                for f in [pool.submit(_solve_case_in_worker, metas[c], path[c], log is not None) for c in todo]:
+                    f.result()
+        finally:
+            for k, v in saved_env.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
+    return {c: solve_case(metas[c], path[c], log=log) for c in cfg["cases"]}
+
+
+def run(level, out_dir=None, log=None):
     warm_up()
     cfg = LEVELS[level]
+    checkpoints = None
+    if level == "full":     # hours: every finished case is checkpointed, a second call resumes
+        checkpoints = Path(out_dir or "validation-out") / "disk-wrinkles-checkpoints"
+        checkpoints.mkdir(parents=True, exist_ok=True)
+        if log:
+            log(f"  checkpoints in {checkpoints}")
+    solved = solve_cases(cfg, checkpoints, log)
     rows, results = [], []
-    for h, R2, resolution in cfg["cases"]:
-        with timed() as t:
-            r = follow(h, R2, resolution, log=log, law=cfg["law"], refine_inside=cfg["refine_inside"])
-        results.append((h, R2, r))
-        nv = r["disk"].n_vertices
+    for (h, R2, resolution), (d, u, rec) in solved.items():
+        w = d.deflection(u)
+        results.append((h, R2, dict(rec, disk=d, u=u, w=w)))
+        nv, wall = d.n_vertices, rec["wall_s"]
         at = f" @ h={h:g} R2={R2:g}"
         pc = paper_count(h, R2)
         ptxt = "" if pc is None else f" (paper: {pc})"
-        first = r["first"]
-        bad = "" if r["result"] else ", final state NOT a resolved stable equilibrium: not a result"
+        has_first = rec["eps_first"] is not None
+        bad = "" if rec["result"] else ", final state NOT a resolved stable equilibrium: not a result"
         # the paper's count is the reference, reported without a tolerance (issue 4: near, not equal)
-        rows.append(Row(f"wrinkles at eps=0.5 ({cfg['law']} membrane){ptxt}{bad}" + at, r["count"], pc, None, nv, t()))
+        rows.append(Row(f"wrinkles at eps=0.5 ({cfg['law']} membrane){ptxt}{bad}" + at, rec["count"], pc, None, nv,
+                        wall))
         rim = f"on r = {INNER_RIM_RADII[0]:g}-{INNER_RIM_RADII[-1]:g} R2, inside the rim"
-        rows.append(Row(f"dominant azimuthal k >= 2 of w {rim}" + at, r["rim"][0], None, None, nv, t()))
+        rows.append(Row(f"dominant azimuthal k >= 2 of w {rim}" + at, rec["rim"][0], None, None, nv, wall))
         rows.append(Row(f"its amplitude / the axisymmetric part {rim} (the count's threshold: {REL_TOL:g})" + at,
-                        r["rim"][1], None, None, nv, t()))
+                        rec["rim"][1], None, None, nv, wall))
         rows.append(Row("first bifurcation eps of the flat state" + at,
-                        first.parameter if first else math.nan, None, None, nv, t()))
+                        rec["eps_first"] if has_first else math.nan, None, None, nv, wall))
         rows.append(Row("first bifurcation azimuthal n (multiplicity "
-                        f"{first.multiplicity if first else '-'})" + at,
-                        r["n_first"] if first else math.nan, None, None, nv, t()))
+                        f"{rec['multiplicity'] if has_first else '-'})" + at,
+                        rec["n_first"] if has_first else math.nan, None, None, nv, wall))
         rows.append(Row(f"smallest stretch current/target in r<R2 at the first bifurcation (SVK membrane loses "
                         f"ellipticity below {svk_ellipticity_stretch():.4f})" + at,
-                        r["stretch_first"] if first else math.nan, None, None, nv, t()))
-        rows.append(Row("branch switches (1 = the first bifurcation only)" + at, len(r["switch_points"]),
-                        None, None, nv, t()))
-        rows.append(Row("folds met by the branches followed (the shell snaps there)" + at, len(r["folds"]),
-                        None, None, nv, t()))
+                        rec["stretch_first"] if has_first else math.nan, None, None, nv, wall))
+        rows.append(Row("branch switches (1 = the first bifurcation only)" + at, rec["switches"], None, None, nv, wall))
+        rows.append(Row("folds met by the branches followed (the shell snaps there)" + at, rec["folds"],
+                        None, None, nv, wall))
         rows.append(Row("final state relaxed by stable Newton (1) or reached on a branch (0)" + at,
-                        float(r["relaxed"]), None, None, nv, t()))
-        undecided = r["n_negative_final"] is None
+                        float(rec["relaxed"]), None, None, nv, wall))
+        cands = [c for c in rec["candidates"] if c["push"] is not None]
+        if len(cands) > 1:
+            ok = [c for c in cands if c["result"]]
+            listing = ", ".join(f"{c['push']}: {c['count']}" + ("" if c["result"] else " (not a result)") for c in cands)
+            rows.append(Row(f"relaxations from the snap that end in a resolved stable state ({listing}; the lowest-energy "
+                            f"one, {rec['candidates'][rec['chosen']]['push']}, is counted)" + at, len(ok), None, None,
+                            nv, wall))
+            if len(ok) > 1:
+                e = [c["energy"] for c in ok]
+                rows.append(Row("energy spread of those states (max - min) / min" + at, (max(e) - min(e)) / min(e),
+                                None, None, nv, wall))
+        undecided = rec["n_negative_final"] is None
         rows.append(Row("negative eigenvalues of the constrained Hessian at eps=0.5" + at
                         + (": not decided, the Hessian is not finite" if undecided else ""),
-                        math.nan if undecided else r["n_negative_final"], 0.0, 0.0, nv, t()))
+                        math.nan if undecided else rec["n_negative_final"], 0.0, 0.0, nv, wall))
         rows.append(Row(f"|grad| at eps=0.5 / |grad| of the flat disk there (an equilibrium: <= {EQUILIBRIUM_RTOL:g})"
-                        + at, r["residual"], 0.0, EQUILIBRIUM_RTOL, nv, t()))
+                        + at, rec["residual"], 0.0, EQUILIBRIUM_RTOL, nv, wall))
         rows.append(Row(f"mid-edge normals turned by {FOLD_LIMIT_DEG:g} degrees or more at eps=0.5 (0: the mesh "
-                        "carries the state's folds)" + at, r["over_folded"], 0.0, 0.0, nv, t()))
+                        "carries the state's folds)" + at, rec["over_folded"], 0.0, 0.0, nv, wall))
         rows.append(Row("largest turn of a mid-edge normal from its faces at eps=0.5 (degrees, < 90)" + at,
-                        r["largest_turn"], None, None, nv, t()))
+                        rec["largest_turn"], None, None, nv, wall))
     _LAST["results"] = results
     _LAST["level"] = level
     # only resolved stable equilibria have a wrinkle count (the others fail a toleranced row)

@@ -73,11 +73,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import load_checkpoint, save_checkpoint
+from ..io import save_checkpoint
 from ..shell.element import EDGE_UNKNOWN
 from ..shell.model import FOLD_LIMIT_DEG
 from ..solvers.linear import LinearSolverError
 from ..solvers.newton import NewtonError, minimize
+from .common import saved_state
 from .disk_wrinkles import EQUILIBRIUM_RTOL, Disk, follow, warm_up
 from .framework import Row, timed
 
@@ -111,19 +112,6 @@ LEVELS = {
 REFERENCE = {"h": 0.5, "eps": -0.25}
 
 _LAST = {}
-
-
-def _saved_run(checkpoint, meta, keys=()):
-    """The saved state of the checkpoint a run resumes from (or its ``.prev``), None when there is none.
-    ValueError naming the difference when the saved meta differs from ``meta`` in any of its keys or in ``keys``
-    (keys the current run may leave out of its meta)."""
-    if checkpoint is None or not (checkpoint.exists() or checkpoint.with_name(checkpoint.name + ".prev").exists()):
-        return None
-    state, saved = load_checkpoint(checkpoint)
-    differ = {k: (saved.get(k), meta.get(k)) for k in {*meta, *keys} if saved.get(k) != meta.get(k)}
-    if differ:
-        raise ValueError(f"{checkpoint} belongs to another run (saved, now: {differ}); remove it to start afresh")
-    return state
 
 
 def seed_shape(disk, seed=SEED, waves=SEED_WAVES, modes=SEED_MODES):
@@ -165,7 +153,7 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
             "eps": float(eps), "n_steps": n_steps, "seed": seed, "waves": waves, "dome": SEED_DOME, "modes": modes,
             "edge_unknown": EDGE_UNKNOWN}
     done = 0
-    state = _saved_run(checkpoint, meta)
+    state = saved_state(checkpoint, meta)
     if state is not None:
         u, failures, done = state["u"], state["failures"], state["step"]
     for step, e in enumerate(np.linspace(0.0, eps, n_steps + 1)[1:], start=1):
@@ -244,7 +232,7 @@ def growth_history(h, eps_end, resolution, law, snapshots=(), checkpoint=None, l
             "refine_inside": True, "edge_unknown": EDGE_UNKNOWN}
     if snapshots:
         meta["snapshots"] = snapshots
-    state = _saved_run(checkpoint, meta, keys=("snapshots",))
+    state = saved_state(checkpoint, meta, keys=("snapshots",))
     if state is not None:
         d = Disk(h, R2, resolution, law=law, refine_inside=True)
         n_unknowns = len(d.model.initial_unknowns())
