@@ -70,8 +70,8 @@ sheet's saddle (count 2) where the rim had 6 lobes.
    which one a single relaxation reaches is decided by round-off (the same code gave 4 on one machine and 5 on
    another). So the levels relax from ``pushes`` = 4 starts, ±φ₁ and ±φ₂ (a double point's cos/sin pair), and
    keep the lowest-energy state that is a result (:func:`select_lowest`; the rows list each start's count).
-   Four starts are a sample, not a search: the modes' plane holds a circle of directions, and on the full
-   level's h = 0.25, R2 = 3 mesh all four end at 5 wrinkles where one other push reached a stable 6 0.12 %
+   Four starts are a sample, not a search: on the full level's h = 0.25, R2 = 3 mesh they (and the four
+   diagonals between them) end at 5 wrinkles, where a relaxation with earlier code reached a stable 6 0.12 %
    lower (docs/disk-crosscheck.md), so the thin counts 5, 5, 5 do not rise with R2.
    Each end state is then checked independently: it must be an
    equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of the flat disk's at ε = 0.5; a relaxation whose
