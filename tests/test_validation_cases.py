@@ -134,6 +134,68 @@ def test_the_disk_has_no_length_of_its_own():
     np.testing.assert_allclose(gb[~pos], s ** 3 * ga[~pos], rtol=0, atol=1e-12 * np.abs(s ** 3 * ga).max())
 
 
+def test_the_inner_radius_is_a_parameter_of_one_mesh():
+    """Disk.radius_problem at λ = s R2 is the disk of radii s R2, s R1 and the same h, meshed anew: Π(s x) of that
+    disk equals s³ Π(x) of the parametrised one (radius_energy), its position gradient s² times, edge s³ times."""
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    s, eps = 2.0, 0.3     # gmsh meshes a disk scaled by a power of two alike, to round-off
+    a = dw.Disk(0.5, 3.0, 3, R1=20.0, law="neo-hookean")
+    b = dw.Disk(0.5, 3.0 * s, 3, R1=20.0 * s, law="neo-hookean")       # gmsh's mesh of the larger disk
+    p = a.radius_problem(eps)
+    p.set_parameter(3.0 * s)
+    b.problem.set_parameter(eps)
+    n_pos = 3 * a.mesh.n_vertices
+    q = a.model.full(a.model.initial_unknowns())
+    rng = np.random.default_rng(2)
+    q[:n_pos] += 0.025 * rng.standard_normal(n_pos)
+    q[n_pos:] += 0.1 * rng.standard_normal(len(q) - n_pos)
+    qb = q.copy()
+    qb[:n_pos] *= s
+    ua, ub = q[a.model.free], qb[b.model.free]
+    assert np.array_equal(a.triangles, b.triangles) and np.allclose(b.points, s * a.points, rtol=0, atol=1e-12)
+    assert b.model.energy(ub) == pytest.approx(a.radius_energy(p, ua), rel=1e-12)
+    ga, gb = p.model.gradient(ua), b.model.gradient(ub)
+    pos = np.flatnonzero(a.model.free) < n_pos
+    np.testing.assert_allclose(gb[pos], s ** 2 * ga[pos], rtol=0, atol=1e-12 * np.abs(s ** 2 * ga).max())
+    np.testing.assert_allclose(gb[~pos], s ** 3 * ga[~pos], rtol=0, atol=1e-12 * np.abs(s ** 3 * ga).max())
+    a.problem.set_parameter(eps)        # the disk's own ε problem is untouched by the radius one
+    assert a.model.rest.thickness.max() == 0.5
+    with pytest.raises(ValueError, match="R2"):
+        p.set_parameter(0.0)
+
+
+def test_a_radius_sweep_carries_a_state_to_equilibria_of_the_larger_disks_and_resumes(tmp_path, monkeypatch):
+    """Each state of sweep_radius, magnified to its radius, balances the disk meshed at that radius (independent
+    mesh and model); a second call reads the checkpoint back without solving."""
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    a = dw.Disk(1.0, 3.0, 3, R1=15.0, law="neo-hookean")
+    a.problem.set_parameter(0.02)
+    u0 = dw.minimize(a.problem, a.model.initial_unknowns(), stable=True, log=None).u
+    ck = tmp_path / "sweep.npz"
+    rows, states = dw.sweep_radius(a, u0, [6.0, 12.0], eps=0.02, checkpoint=ck, meta={"case": "test"})
+    n_pos = 3 * a.mesh.n_vertices
+    pos = np.flatnonzero(a.model.free) < n_pos
+    for r, u in zip(rows, states):
+        s = r["R2"] / 3.0
+        b = dw.Disk(1.0, r["R2"], 3, R1=15.0 * s, law="neo-hookean")
+        ub = np.where(pos, s * u, u)
+        assert b.relative_residual(ub, 0.02) <= 10 * r["residual"] + 1e-10 and r["residual"] <= dw.EQUILIBRIUM_RTOL
+        assert r["energy"] == pytest.approx(b.model.energy(ub), rel=1e-12) and r["result"]
+    monkeypatch.setattr(dw, "minimize", lambda *a, **k: pytest.fail("a saved step was solved again"))
+    again, states2 = dw.sweep_radius(a, u0, [6.0, 12.0], eps=0.02, checkpoint=ck, meta={"case": "test"})
+    assert again == rows and np.array_equal(states2, states)
+    with pytest.raises(ValueError, match="radii"):
+        dw.sweep_radius(a, u0, [6.0, 24.0], eps=0.02, checkpoint=ck, meta={"case": "test"})
+    with pytest.raises(ValueError, match="another run"):
+        dw.sweep_radius(a, u0, [6.0, 12.0], eps=0.03, checkpoint=ck, meta={"case": "test"})
+
+
 def test_disk_end_state_is_the_lowest_energy_result_of_the_relaxations():
     from femshell.validation.disk_wrinkles import select_lowest
 

@@ -71,8 +71,9 @@ sheet's saddle (count 2) where the rim had 6 lobes.
    another). So the levels relax from ``pushes`` = 4 starts, ±φ₁ and ±φ₂ (a double point's cos/sin pair), and
    keep the lowest-energy state that is a result (:func:`select_lowest`; the rows list each start's count).
    Four starts are a sample, not a search: on the full level's h = 0.25, R2 = 3 mesh they (and the four
-   diagonals between them) end at 5 wrinkles, where a relaxation with earlier code reached a stable 6 0.12 %
-   lower (docs/disk-crosscheck.md), so the thin counts 5, 5, 5 do not rise with R2.
+   diagonals between them) end at 5 wrinkles, where a stable 6 lies 0.14 % lower (reached by
+   :func:`sweep_radius`, which follows the states in R2 at ε = 0.5: validation/disk_radius_sweep.py,
+   docs/disk-crosscheck.md), and the thin counts 5, 5, 5 do not rise with R2.
    Each end state is then checked independently: it must be an
    equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of the flat disk's at ε = 0.5; a relaxation whose
    Newton failed keeps its last iterate), stable (no negative eigenvalue of the constrained
@@ -131,6 +132,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._checks import finite
 from ..analysis import azimuthal_power, azimuthal_spectrum, count_wrinkles
 from ..linear_buckling import _disk_mesh
 from ..io import save_checkpoint
@@ -262,10 +264,42 @@ class Disk:
     def n_vertices(self):
         return self.mesh.n_vertices
 
-    def rest_of(self, eps):
+    def rest_of(self, eps, h=None):
+        """Rest state at growth strain ε (class docstring); ``h``: the ungrown thickness (default the disk's)."""
+        h = self.h if h is None else h
         s2 = np.where(self.inside, (1.0 + eps) ** 2, 1.0)
-        thick = np.where(self.inside, self.h / (1.0 + eps) ** 2, self.h)
+        thick = np.where(self.inside, h / (1.0 + eps) ** 2, h)
         return RestState(self.a0 * s2[:, None, None], np.zeros_like(self.a0), thick)
+
+    def radius_problem(self, eps=EPS_END):
+        r"""The inner radius R2 as a continuation parameter at growth strain ``eps``, on this mesh (no remeshing).
+
+        A disk has no length of its own, Π(s x, s h) = s³ Π(x, h) (tests/test_validation_cases.py), so the disk
+        of inner radius R2' = s R2, outer radius s R1 and thickness h is this mesh's disk of thickness h/s
+        magnified by s. The parameter λ = R2' sets the thickness h R2/R2' on this mesh; a state u of it is the
+        disk R2' with positions s times those of u and energy s³ Π(u) (:meth:`radius_energy`). R1/R2 stays fixed
+        (the full level's R1 = 10 R2). A :class:`~femshell.solvers.continuation.GrowthParameter` over a
+        ShellModel of its own, so :attr:`problem` is not disturbed; arclength scales h (positions), R2/10 (λ).
+
+        >>> d = Disk(2.0, 3.0, 3, R1=20.0)
+        >>> p = d.radius_problem()
+        >>> p.set_parameter(6.0)
+        >>> float(p.model.rest.thickness.max())    # h R2 / R2' outside the grown circle
+        1.0
+        """
+        eps = float(eps)
+        R2 = self.R2
+
+        def rest(radius):
+            radius = finite("R2", radius, 0.0, lo_open=True, text="(0, inf)")
+            return self.rest_of(eps, self.h * R2 / radius)
+
+        model = ShellModel(self.mesh, self.model.material, rest(R2))
+        return GrowthParameter(model, rest, parameter_scale=R2 / 10.0, length_scale=self.h)
+
+    def radius_energy(self, problem, u):
+        """Energy of the disk of inner radius ``problem.parameter`` (:meth:`radius_problem`) in state u: s³ Π(u)."""
+        return float((problem.parameter / self.R2) ** 3 * problem.model.energy(u))
 
     def _off_plane(self, z):
         """z minus its best-fit plane a + b X + c Y (X, Y reference): a rigid tilt is no wave."""
@@ -613,6 +647,74 @@ def follow(h, R2, resolution, log=None, verbose=False, law="svk", refine_inside=
         f"flat disk's, energy {out['energy']:.8g}, "
         f"{out['wall_s']:.0f} s")
     return out
+
+
+def sweep_radius(d, u, radii, eps=EPS_END, log=None, checkpoint=None, meta=None):
+    r"""Quasi-static sweep of the inner radius at growth strain ``eps``: the state u of disk ``d`` (at d.R2)
+    carried through ``radii`` (R2 values in order, R1/R2 fixed) by stable Newton steps on d's mesh
+    (:meth:`Disk.radius_problem`).
+
+    At each radius the last state is relaxed to a stable equilibrium (:func:`~femshell.solvers.newton.minimize`,
+    ``stable=True``; past a fold of its branch it descends into the next stable state, as a slowly growing disk
+    snaps) and checked as a case's final state is: negative eigenvalues, |∇Π| / |∇Π(flat)|, edges over-folded.
+    So the sweep follows an n-branch while it is stable and shows where it gives way; where the count changes
+    differs up and down (hysteresis), and two sweeps through the same radii compare the branches' energies.
+    Pseudo-arclength continuation in R2 is no cheaper here: the wrinkled states' branches turn back at folds
+    every 0.04-1 in R2/h (measured at h = 0.25, R2 = 3; the pattern re-pins against the mesh, count unchanged).
+
+    Returns (rows, states): per radius a dict R2, count, rim (:meth:`Disk.rim_mode`), energy
+    (:meth:`Disk.radius_energy`), n_negative, residual, over_folded, largest_turn, result (a resolved stable
+    equilibrium), iterations, wall_s; and the states (mesh units, a 2-D array). With ``checkpoint`` (an .npz path)
+    every step is saved, and a later call with the same ``meta`` and ``eps`` whose ``radii`` begin with the saved
+    ones resumes after the last (so a sweep can be extended); other radii are refused (ValueError).
+    """
+    log = log or _quiet
+    radii = [finite("R2", r, 0.0, lo_open=True, text="(0, inf)") for r in radii]
+    meta = dict(meta or {}, eps=float(eps))
+    rows, states = [], []
+    saved = saved_state(checkpoint, meta) if checkpoint is not None else None
+    if saved is not None:
+        rows, states = json.loads(str(saved["rows"])), list(saved["states"])
+        done = [r["R2"] for r in rows]
+        if radii[: len(done)] != done:
+            raise ValueError(f"{checkpoint} swept the radii {done}, which these radii do not begin with; remove it "
+                             "to start afresh")
+        u = states[-1]
+        log(f"    resumed after R2 = {rows[-1]['R2']:g} ({len(rows)} of {len(radii)} radii)")
+    prob = d.radius_problem(eps)
+    model = prob.model
+    for radius in radii[len(rows):]:
+        t0 = time.perf_counter()
+        prob.set_parameter(radius)
+        try:
+            res = minimize(prob, u, stable=True, max_iter=400, log=None)
+            u, iterations = res.u, res.iterations
+        except NewtonError as exc:          # keep the last iterate: its row says it is no result
+            log(f"    stable Newton failed at R2 = {radius:g}: {exc}")
+            u = exc.result.u if getattr(exc, "result", None) is not None else u
+            iterations = None
+        try:
+            fac = factorize(model.hessian(u), kind="symmetric_indefinite")
+            n_negative = int(fac.inertia[1])
+            fac.free()
+        except LinearSolverError:
+            n_negative = None
+        flat = np.linalg.norm(model.gradient(model.initial_unknowns()))
+        residual = float(np.linalg.norm(model.gradient(u)) / max(flat, 1e-300))
+        over = len(model.over_folded_edges(u))
+        w = d.deflection(u)
+        rows.append(dict(R2=radius, count=int(d.count(w)), rim=int(d.rim_mode(w)[0]),
+                         energy=d.radius_energy(prob, u), n_negative=n_negative, residual=residual, over_folded=over,
+                         largest_turn=float(model.edge_turning_angles(u).max()),
+                         result=n_negative == 0 and residual <= EQUILIBRIUM_RTOL and over == 0,
+                         iterations=iterations, wall_s=time.perf_counter() - t0))
+        states.append(np.array(u))
+        r = rows[-1]
+        log(f"    R2 = {radius:.5g}: {r['count']} wrinkles, energy {r['energy']:.8g}, {n_negative} negative "
+            f"eigenvalues, residual {residual:.1e}, largest turn {r['largest_turn']:.0f} deg, {r['wall_s']:.0f} s")
+        if checkpoint is not None:
+            save_checkpoint(checkpoint, {"states": np.array(states), "rows": json.dumps(rows, allow_nan=False)}, meta)
+    return rows, np.array(states)
 
 
 def warm_up():
