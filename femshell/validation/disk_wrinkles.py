@@ -659,11 +659,11 @@ def sweep_radius(d, u, radii, eps=EPS_END, log=None, checkpoint=None, meta=None)
     snaps) and checked as a case's final state is: negative eigenvalues, |∇Π| / |∇Π(flat)|, edges over-folded.
     So the sweep follows an n-branch while it is stable and shows where it gives way; where the count changes
     differs up and down (hysteresis), and two sweeps through the same radii compare the branches' energies.
-    Pseudo-arclength continuation in R2 is no cheaper here: the wrinkled states' branches turn back at folds
-    every 0.04-1 in R2/h (measured at h = 0.25, R2 = 3; the pattern re-pins against the mesh, count unchanged).
+    Pseudo-arclength continuation in R2 would stop at every fold: the wrinkled states' branches turn back every
+    0.04-1 in R2/h (measured at h = 0.25, R2 = 3; the pattern re-pins against the mesh, count unchanged).
 
     Returns (rows, states): per radius a dict R2, count, rim (:meth:`Disk.rim_mode`), energy
-    (:meth:`Disk.radius_energy`), n_negative, residual, over_folded, largest_turn, result (a resolved stable
+    (:meth:`Disk.radius_energy`; count, rim, energy and residual None for a state that is not finite), n_negative, residual, over_folded, largest_turn, result (a resolved stable
     equilibrium), iterations, wall_s; and the states (mesh units, a 2-D array). With ``checkpoint`` (an .npz path)
     every step is saved, and a later call with the same ``meta`` and ``eps`` whose ``radii`` begin with the saved
     ones resumes after the last (so a sweep can be extended); other radii are refused (ValueError).
@@ -695,22 +695,28 @@ def sweep_radius(d, u, radii, eps=EPS_END, log=None, checkpoint=None, meta=None)
             iterations = None
         try:
             fac = factorize(model.hessian(u), kind="symmetric_indefinite")
-            n_negative = int(fac.inertia[1])
-            fac.free()
-        except LinearSolverError:
+            try:
+                n_negative = int(fac.inertia[1])
+            finally:
+                fac.free()
+        except LinearSolverError:       # a collapsed state has no finite Hessian: no result
             n_negative = None
         flat = np.linalg.norm(model.gradient(model.initial_unknowns()))
         residual = float(np.linalg.norm(model.gradient(u)) / max(flat, 1e-300))
+        energy = d.radius_energy(prob, u)
+        finite_state = math.isfinite(residual) and math.isfinite(energy)
         over = len(model.over_folded_edges(u))
         w = d.deflection(u)
-        rows.append(dict(R2=radius, count=int(d.count(w)), rim=int(d.rim_mode(w)[0]),
-                         energy=d.radius_energy(prob, u), n_negative=n_negative, residual=residual, over_folded=over,
+        rows.append(dict(R2=radius, count=int(d.count(w)) if finite_state else None,
+                         rim=int(d.rim_mode(w)[0]) if finite_state else None,
+                         energy=energy if finite_state else None, n_negative=n_negative,
+                         residual=residual if finite_state else None, over_folded=over,
                          largest_turn=float(model.edge_turning_angles(u).max()),
-                         result=n_negative == 0 and residual <= EQUILIBRIUM_RTOL and over == 0,
+                         result=finite_state and n_negative == 0 and residual <= EQUILIBRIUM_RTOL and over == 0,
                          iterations=iterations, wall_s=time.perf_counter() - t0))
         states.append(np.array(u))
         r = rows[-1]
-        log(f"    R2 = {radius:.5g}: {r['count']} wrinkles, energy {r['energy']:.8g}, {n_negative} negative "
+        log(f"    R2 = {radius:.5g}: {r['count']} wrinkles, energy {energy:.8g}, {n_negative} negative "
             f"eigenvalues, residual {residual:.1e}, largest turn {r['largest_turn']:.0f} deg, {r['wall_s']:.0f} s")
         if checkpoint is not None:
             save_checkpoint(checkpoint, {"states": np.array(states), "rows": json.dumps(rows, allow_nan=False)}, meta)
