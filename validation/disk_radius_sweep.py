@@ -228,7 +228,6 @@ def main(argv=None):
         work.mkdir(parents=True, exist_ok=True)
     except (ValueError, OSError) as exc:
         sys.exit(str(exc))
-    d, u, rec = None, None, None
     if not args.table_only:
         dw.warm_up()
         d, u, rec = start_case(args)
@@ -237,12 +236,13 @@ def main(argv=None):
         for name in args.sweeps:
             run_sweep(args, name, d, u, rec["count"], work)
     sweeps = collect(args, work)
+    if not any(n != "start" for n in sweeps):      # keep an existing --out rather than write an empty one
+        sys.exit(f"no sweep checkpoints in {work}: nothing to tabulate ({out} left as it is)")
     result = {"case": {"h": args.h, "R2": args.R2, "resolution": args.resolution, "R1_over_R2": dw.LEVELS["full"]["outer_factor"],
                        "eps": dw.EPS_END, "step": args.step},
               "sweeps": sweeps, "count_changes": changes(sweeps)}
     atomic_write_json(out, result)
-    if sweeps:
-        plot(sweeps, out.with_suffix(".png"))
+    plot(sweeps, out.with_suffix(".png"))
     md = table(sweeps)
     print(md)
     for n, ch in result["count_changes"].items():
