@@ -158,9 +158,9 @@ def changes(sweeps):
     """Per sweep: [(R2 before, R2 after, count before, count after)] where its count changes between results."""
     out = {}
     for n, s in sweeps.items():
-        ok = [r for r in s["rows"] if r["result"]]
         if n == "start":
             continue
+        ok = [r for r in s["rows"] if r["result"]]
         out[n] = [(a["R2"], b["R2"], a["count"], b["count"]) for a, b in zip(ok, ok[1:]) if a["count"] != b["count"]]
     return out
 
@@ -181,9 +181,9 @@ def plot(sweeps, path):
     for k, (n, s) in enumerate(sweeps.items()):
         ok = [r for r in s["rows"] if r["result"]]
         x = [r["R2"] for r in ok]
-        style = "k*" if n == "start" else "o-"
-        a.plot(x, [r["count"] + 0.06 * (k - 2) for r in ok], style, ms=3 if k else 8, label=n)
-        b.plot(x, [100 * (r["energy"] / lowest[r["R2"]] - 1) for r in ok], style, ms=3 if k else 8, label=n)
+        style, ms = ("k*", 8) if n == "start" else ("o-", 3)
+        a.plot(x, [r["count"] + 0.06 * (k - 2) for r in ok], style, ms=ms, label=n)
+        b.plot(x, [100 * (r["energy"] / lowest[r["R2"]] - 1) for r in ok], style, ms=ms, label=n)
     a.set_xlabel("R2")
     a.set_ylabel("wrinkles at eps = 0.5 (offset per sweep)")
     b.set_xlabel("R2")

@@ -351,33 +351,38 @@ class Disk:
                     for v in np.atleast_2d(np.asarray(modes).T))
         return int(np.argmax(power))
 
-    def relative_residual(self, u, eps):
-        """|∇Π(u)| / |∇Π(flat)| at ε: the imbalance left in u against that of the ungrown shape."""
-        self.problem.set_parameter(eps)
-        flat = np.linalg.norm(self.model.gradient(self.model.initial_unknowns()))
-        return float(np.linalg.norm(self.model.gradient(u)) / max(flat, 1e-300))
+    def relative_residual(self, u, eps, problem=None):
+        """|∇Π(u)| / |∇Π(flat)| at ε: the imbalance left in u against that of the ungrown shape. ``problem``: the
+        parametrised problem whose parameter ``eps`` is (default :attr:`problem`; e.g. :meth:`radius_problem`)."""
+        problem = problem or self.problem
+        problem.set_parameter(eps)
+        model = problem.model
+        flat = np.linalg.norm(model.gradient(model.initial_unknowns()))
+        return float(np.linalg.norm(model.gradient(u)) / max(flat, 1e-300))
 
-    def final_check(self, u, eps, log=None):
+    def final_check(self, u, eps, log=None, problem=None):
         """Whether state u at ε counts as a result (module docstring, step 3): a dict of n_negative (None, and
         a line in ``log``, when the Hessian is not finite), residual (:meth:`relative_residual`), over_folded
         (:meth:`~femshell.shell.ShellModel.over_folded_edges`), largest_turn (degrees) and result (a resolved
-        stable equilibrium)."""
+        stable equilibrium). ``problem``: as for :meth:`relative_residual`."""
         try:
-            n_negative = self.n_negative(u, eps)
+            n_negative = self.n_negative(u, eps, problem)
         except LinearSolverError as exc:     # a collapsed state has no finite Hessian: no result, say why
             n_negative = None
             if log:
-                log(f"    stability at eps = {eps:g} not decided: {exc}")
-        residual = self.relative_residual(u, eps)
+                log(f"    stability at {'eps' if problem is None else 'parameter'} = {eps:g} not decided: {exc}")
+        residual = self.relative_residual(u, eps, problem)
         over_folded = len(self.model.over_folded_edges(u))
         return dict(n_negative=n_negative, residual=residual, over_folded=over_folded,
                     largest_turn=float(self.model.edge_turning_angles(u).max()),
                     result=n_negative == 0 and residual <= EQUILIBRIUM_RTOL and over_folded == 0)
 
-    def n_negative(self, u, eps):
-        """Negative eigenvalues of the constrained Hessian at (u, ε) (inertia of its LDLᵀ)."""
-        self.problem.set_parameter(eps)
-        fac = factorize(self.model.hessian(u), kind="symmetric_indefinite")
+    def n_negative(self, u, eps, problem=None):
+        """Negative eigenvalues of the constrained Hessian at (u, ε) (inertia of its LDLᵀ); ``problem``: as for
+        :meth:`relative_residual`."""
+        problem = problem or self.problem
+        problem.set_parameter(eps)
+        fac = factorize(problem.model.hessian(u), kind="symmetric_indefinite")
         try:
             return int(fac.inertia[1])
         finally:
@@ -656,7 +661,7 @@ def sweep_radius(d, u, radii, eps=EPS_END, log=None, checkpoint=None, meta=None)
 
     At each radius the last state is relaxed to a stable equilibrium (:func:`~femshell.solvers.newton.minimize`,
     ``stable=True``; past a fold of its branch it descends into the next stable state, as a slowly growing disk
-    snaps) and checked as a case's final state is: negative eigenvalues, |∇Π| / |∇Π(flat)|, edges over-folded.
+    snaps) and checked as a case's final state is (:meth:`Disk.final_check` on the radius problem).
     So the sweep follows an n-branch while it is stable and shows where it gives way; where the count changes
     differs up and down (hysteresis), and two sweeps through the same radii compare the branches' energies.
     Pseudo-arclength continuation in R2 would stop at every fold: the wrinkled states' branches turn back every
@@ -682,7 +687,6 @@ def sweep_radius(d, u, radii, eps=EPS_END, log=None, checkpoint=None, meta=None)
         u = states[-1]
         log(f"    resumed after R2 = {rows[-1]['R2']:g} ({len(rows)} of {len(radii)} radii)")
     prob = d.radius_problem(eps)
-    model = prob.model
     for radius in radii[len(rows):]:
         t0 = time.perf_counter()
         prob.set_parameter(radius)
@@ -693,31 +697,20 @@ def sweep_radius(d, u, radii, eps=EPS_END, log=None, checkpoint=None, meta=None)
             log(f"    stable Newton failed at R2 = {radius:g}: {exc}")
             u = exc.result.u if getattr(exc, "result", None) is not None else u
             iterations = None
-        try:
-            fac = factorize(model.hessian(u), kind="symmetric_indefinite")
-            try:
-                n_negative = int(fac.inertia[1])
-            finally:
-                fac.free()
-        except LinearSolverError:       # a collapsed state has no finite Hessian: no result
-            n_negative = None
-        flat = np.linalg.norm(model.gradient(model.initial_unknowns()))
-        residual = float(np.linalg.norm(model.gradient(u)) / max(flat, 1e-300))
+        check = d.final_check(u, radius, log=log, problem=prob)
         energy = d.radius_energy(prob, u)
-        finite_state = math.isfinite(residual) and math.isfinite(energy)
-        over = len(model.over_folded_edges(u))
+        finite_state = math.isfinite(check["residual"]) and math.isfinite(energy)
         w = d.deflection(u)
         rows.append(dict(R2=radius, count=int(d.count(w)) if finite_state else None,
                          rim=int(d.rim_mode(w)[0]) if finite_state else None,
-                         energy=energy if finite_state else None, n_negative=n_negative,
-                         residual=residual if finite_state else None, over_folded=over,
-                         largest_turn=float(model.edge_turning_angles(u).max()),
-                         result=finite_state and n_negative == 0 and residual <= EQUILIBRIUM_RTOL and over == 0,
+                         energy=energy if finite_state else None, n_negative=check["n_negative"],
+                         residual=check["residual"] if finite_state else None, over_folded=check["over_folded"],
+                         largest_turn=check["largest_turn"], result=finite_state and check["result"],
                          iterations=iterations, wall_s=time.perf_counter() - t0))
         states.append(np.array(u))
         r = rows[-1]
-        log(f"    R2 = {radius:.5g}: {r['count']} wrinkles, energy {energy:.8g}, {n_negative} negative "
-            f"eigenvalues, residual {residual:.1e}, largest turn {r['largest_turn']:.0f} deg, {r['wall_s']:.0f} s")
+        log(f"    R2 = {radius:.5g}: {r['count']} wrinkles, energy {energy:.8g}, {r['n_negative']} negative "
+            f"eigenvalues, residual {check['residual']:.1e}, largest turn {r['largest_turn']:.0f} deg, {r['wall_s']:.0f} s")
         if checkpoint is not None:
             save_checkpoint(checkpoint, {"states": np.array(states), "rows": json.dumps(rows, allow_nan=False)}, meta)
     return rows, np.array(states)
