@@ -161,6 +161,26 @@ class Material:
         return self.E * h**3 / (12.0 * (1.0 - self.nu**2))
 
 
+def _pinned_rigidly(x, pins, target, size):
+    """x (n, 3) moved by the rigid motion that gives the six pinned (vertex, component) pairs their values in
+    target (:func:`~femshell.shell.boundary.rigid_body_pins`: six equations for the six parameters of the
+    motion, solved by least squares from the identity; ValueError when they have no solution)."""
+    from scipy.optimize import least_squares
+    from scipy.spatial.transform import Rotation
+
+    v, c = np.array(pins).T
+    want = target[v, c]
+
+    def moved(p):
+        return Rotation.from_rotvec(p[:3]).apply(x) + p[3:]
+
+    fit = least_squares(lambda p: moved(p)[v, c] - want, np.zeros(6), xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    if np.abs(fit.fun).max() > 1e-9 * size:
+        raise ValueError(f"no rigid motion of the positions meets the six rigid-body pins (left {np.abs(fit.fun).max():.3g}): "
+                         "is the state that of this mesh?")
+    return moved(fit.x)
+
+
 def rest_edge_normals(points, topology, face_normals):
     """The mesh's own normal at each edge midpoint (the normal a clamped edge keeps), (n_edges, 3).
 
@@ -268,9 +288,9 @@ class ShellModel:
             bc.apply(mesh, fixed_pos, values, edge_kind, edge_direction)
         if remove_rigid_modes is None:
             remove_rigid_modes = not fixed_pos.any()
-        if remove_rigid_modes:
-            for v, c in rigid_body_pins(mesh.points):
-                fixed_pos[v, c] = True
+        self.rigid_pins = rigid_body_pins(mesh.points) if remove_rigid_modes else []
+        for v, c in self.rigid_pins:
+            fixed_pos[v, c] = True
         self.boundary_conditions = list(boundary_conditions)
 
         # edges whose normal is prescribed have no rotation unknown
@@ -333,6 +353,40 @@ class ShellModel:
                              "those mid-edge normals point away from their faces, a state the current element "
                              "cannot represent; start this run afresh")
         q[n_pos:] = np.tan(angles)
+        return q[self.free]
+
+    def unknowns_from_positions(self, x: np.ndarray) -> np.ndarray:
+        """Free unknowns of the state with vertex positions x (n, 3) and zero edge unknowns (each mid-edge
+        normal the mean of its faces' normals): a start for Newton, e.g. a state carried from another mesh
+        (:func:`femshell.mesh.interpolation.interpolate_p1`).
+
+        A shell held only by the six rigid-body pins is first moved rigidly (which changes no energy) so that
+        the pinned components take their prescribed values; every other prescribed position component must
+        agree with x already (ValueError naming the largest difference otherwise).
+
+        >>> from femshell.mesh import disk
+        >>> from femshell.shell import flat_rest_state
+        >>> m = disk(1.0, edge_length=0.3)
+        >>> model = ShellModel(m, Material(1.0, 0.3), flat_rest_state(m.points, m.triangles, 0.01))
+        >>> u = model.unknowns_from_positions(m.points + [0.0, 0.0, 1.0])    # lifted: a rigid motion
+        >>> bool(np.allclose(model.positions(u), m.points)), bool(abs(model.energy(u)) < 1e-20)
+        (True, True)
+        """
+        x = np.asarray(x, dtype=float)
+        n = self.mesh.n_vertices
+        if x.shape != (n, 3) or not np.all(np.isfinite(x)):
+            raise ValueError(f"positions must be a finite ({n}, 3) array, one row per vertex, got shape {x.shape}")
+        fixed = ~self.free[: 3 * n].reshape(n, 3)
+        target = self.q_fixed[: 3 * n].reshape(n, 3)
+        size = float(np.ptp(self.mesh.points, axis=0).max())
+        if self.rigid_pins:
+            x = _pinned_rigidly(x, self.rigid_pins, target, size)
+        off = np.abs(x - target)[fixed]
+        if off.size and off.max() > 1e-9 * size:
+            raise ValueError(f"positions differ from the prescribed ones by up to {off.max():.3g} (mesh size "
+                             f"{size:.3g}): a state of this model keeps its supports where they are")
+        q = self.q_fixed.copy()
+        q[: 3 * n] = np.where(fixed, target, x).ravel()
         return q[self.free]
 
     def full(self, u: np.ndarray) -> np.ndarray:

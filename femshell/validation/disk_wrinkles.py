@@ -136,6 +136,7 @@ from .._checks import finite
 from ..analysis import azimuthal_power, azimuthal_spectrum, count_wrinkles
 from ..linear_buckling import _disk_mesh
 from ..io import save_checkpoint
+from ..mesh.interpolation import interpolate_p1
 from ..mesh.surface import SurfaceMesh
 from ..shell import Material, RestState, ShellModel
 from ..shell.element import EDGE_UNKNOWN, element_threads
@@ -300,6 +301,15 @@ class Disk:
     def radius_energy(self, problem, u):
         """Energy of the disk of inner radius ``problem.parameter`` (:meth:`radius_problem`) in state u: s³ Π(u)."""
         return float((problem.parameter / self.R2) ** 3 * problem.model.energy(u))
+
+    def carried(self, other, u):
+        """State u of the disk ``other`` (another mesh of the same case, or of a case whose R2 scales to this one's)
+        as free unknowns of this mesh: its positions, magnified by R2/other.R2, interpolated linearly at this mesh's
+        vertices (:func:`~femshell.mesh.interpolation.interpolate_p1`) and moved rigidly onto this mesh's pins, with
+        zero edge unknowns (:meth:`~femshell.shell.ShellModel.unknowns_from_positions`). A start for Newton."""
+        s = self.R2 / other.R2
+        x = interpolate_p1(s * other.points, other.triangles, s * other.model.positions(u), self.points)
+        return self.model.unknowns_from_positions(x)
 
     def _off_plane(self, z):
         """z minus its best-fit plane a + b X + c Y (X, Y reference): a rigid tilt is no wave."""
