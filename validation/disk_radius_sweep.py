@@ -195,6 +195,23 @@ def plot(sweeps, path):
     atomic_write(path, lambda tmp: fig.savefig(tmp, format="png"))
 
 
+def output_places(args, begin, end):
+    """(work, out) of the parsed ``args`` once their places are usable: --doc holds the generated markers (begin,
+    end), --out's directory is writable, --work exists; otherwise exit naming the problem, before any solve."""
+    if args.doc:
+        try:
+            check_generated(args.doc, begin, end)
+        except ValueError as exc:
+            sys.exit(str(exc))
+    work, out = Path(args.work), Path(args.out)
+    try:
+        check_writable_dir(out.parent, "--out's directory")
+        work.mkdir(parents=True, exist_ok=True)
+    except (ValueError, OSError) as exc:
+        sys.exit(str(exc))
+    return work, out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sweeps", nargs="+", choices=SWEEPS, default=["down", "up"])
@@ -217,17 +234,7 @@ def main(argv=None):
     if not (args.h > 0 and 0 < lo < args.R2 < hi and 0 < args.step < hi - lo and args.resolution >= 2
             and args.change >= 1):
         ap.error("need --h > 0, 0 < LO < --R2 < HI, 0 < --step < HI - LO, --resolution >= 2 and --change >= 1")
-    if args.doc:
-        try:
-            check_generated(args.doc, BEGIN, END)
-        except ValueError as exc:
-            sys.exit(str(exc))
-    work, out = Path(args.work), Path(args.out)
-    try:
-        check_writable_dir(out.parent, "--out's directory")
-        work.mkdir(parents=True, exist_ok=True)
-    except (ValueError, OSError) as exc:
-        sys.exit(str(exc))
+    work, out = output_places(args, BEGIN, END)
     if not args.table_only:
         dw.warm_up()
         d, u, rec = start_case(args)
