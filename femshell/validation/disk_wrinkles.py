@@ -73,7 +73,10 @@ sheet's saddle (count 2) where the rim had 6 lobes.
    Four starts are a sample, not a search: on the full level's h = 0.25, R2 = 3 mesh they (and the four
    diagonals between them) end at 5 wrinkles, where a stable 6 lies 0.14 % lower (reached by
    :func:`sweep_radius`, which follows the states in R2 at ε = 0.5: validation/disk_radius_sweep.py,
-   docs/disk-crosscheck.md), and the thin counts 5, 5, 5 do not rise with R2.
+   docs/disk-crosscheck.md), and the thin counts 5, 5, 5 do not rise with R2. Carried to finer meshes of that
+   disk (resolution 40-64, validation/disk_mesh_refinement.py) the 6 stays the lowest state found at R2 = 3
+   and the 5 is no longer stable from resolution 48 on; at R2 = 2 a 4 is the lowest: 4, 6, 6 at R2 = 2, 2.5, 3,
+   which rise. The level's thin cases do not use those meshes (hours per case).
    Each end state is then checked independently: it must be an
    equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of the flat disk's at ε = 0.5; a relaxation whose
    Newton failed keeps its last iterate), stable (no negative eigenvalue of the constrained
