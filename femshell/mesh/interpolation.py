@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-#: triangles (by nearest centroid) tried per query point before every triangle is
-CANDIDATES = 12
+#: triangles (by nearest centroid) tried per query point, and for a point found in none of them
+CANDIDATES, WIDER = 12, 96
 
 
 def _flat(points, what):
@@ -54,27 +54,29 @@ def _barycentric(xy, tri, cand, q):
 def locate(points, triangles, query):
     """The triangle of the flat mesh (points, triangles) holding each query point, and its barycentric
     coordinates: (index (k,), λ (k, 3)). A point outside the mesh gets the triangle it is least outside of
-    (among the ``CANDIDATES`` nearest by centroid), with some λ < 0."""
+    (among the ``WIDER`` nearest by centroid), with some λ < 0."""
     xy, q = _flat(points, "points"), _flat(query, "query points")
     tri = np.asarray(triangles)
     if tri.ndim != 2 or tri.shape[1] != 3 or not len(tri):
         raise ValueError(f"triangles must have shape (m, 3) with m >= 1, got {tri.shape}")
     if tri.min() < 0 or tri.max() >= len(xy):
         raise ValueError(f"triangles index vertices 0..{len(xy) - 1}, got {tri.min()}..{tri.max()}")
-    k = min(CANDIDATES, len(tri))
-    _, cand = cKDTree(xy[tri].mean(axis=1)).query(q, k=k)
-    cand = cand.reshape(len(q), k)
-    lam = _barycentric(xy, tri, cand, q)
-    worst = lam.min(axis=-1)                   # >= 0 inside the triangle
-    best = np.argmax(worst, axis=1)
-    rows = np.arange(len(q))
-    found, lam_found, inside = cand[rows, best], lam[rows, best], worst[rows, best] >= -1e-12
-    # a point near a long sliver may have its triangle beyond the nearest centroids: try them all (rare)
-    for i in np.flatnonzero(~inside):
-        lam_all = _barycentric(xy, tri, np.arange(len(tri))[None, :], q[i:i + 1])[0]
-        j = int(np.argmax(lam_all.min(axis=-1)))
-        if lam_all[j].min() > worst[i, best[i]]:
-            found[i], lam_found[i] = j, lam_all[j]
+    tree = cKDTree(xy[tri].mean(axis=1))
+
+    def best_of(q, k):
+        """Per point: the triangle among the k of nearest centroid that it is least outside of, and its λ."""
+        cand = tree.query(q, k=k)[1].reshape(len(q), k)
+        lam = _barycentric(xy, tri, cand, q)
+        best = np.argmax(lam.min(axis=-1), axis=1)
+        rows = np.arange(len(q))
+        return cand[rows, best], lam[rows, best]
+
+    found, lam_found = best_of(q, min(CANDIDATES, len(tri)))
+    # a point near a long sliver may have its triangle beyond the nearest centroids: look wider (the wider set
+    # holds the first; a point a hair outside the mesh keeps the triangle it is least outside of)
+    miss = np.flatnonzero(lam_found.min(axis=1) < -1e-12)
+    if len(miss) and len(tri) > CANDIDATES:
+        found[miss], lam_found[miss] = best_of(q[miss], min(WIDER, len(tri)))
     return found, lam_found
 
 

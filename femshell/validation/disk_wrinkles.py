@@ -520,6 +520,21 @@ def pushed_starts(d, sp, pushes):
     return out[:pushes]
 
 
+def stable_state(problem, u, parameter, max_iter, log=None, newton_log=None, at=None):
+    """Stable Newton (:func:`~femshell.solvers.newton.minimize`, ``stable=True``) from u at ``parameter`` of the
+    parametrised ``problem``: (u, iterations). When Newton fails the last iterate is kept, with iterations None,
+    and a line goes to ``log`` (``at`` names the point, default the parameter): the final check of the state
+    then says whether it is a result. ``newton_log``: Newton's own lines (default none)."""
+    problem.set_parameter(parameter)
+    try:
+        fit = minimize(problem, u, stable=True, max_iter=max_iter, log=newton_log)
+        return fit.u, fit.iterations
+    except NewtonError as exc:
+        if log:
+            log(f"    stable Newton failed at {at or f'parameter = {parameter:g}'}: {exc}")
+        return (exc.result.u if exc.result is not None else u), None
+
+
 def _relax(prob, u, eps, eps_end, snapshots, log):
     """Stable Newton from (u, ε) to ``eps_end`` in ε steps of at most 0.05 (and at the snapshots between):
     (u at ``eps_end``, {snapshot ε: u}). A step whose Newton fails keeps its last iterate (the final check
@@ -528,12 +543,7 @@ def _relax(prob, u, eps, eps_end, snapshots, log):
     wanted = [e for e in snapshots if eps < e < eps_end]
     taken = {}
     for e in sorted(set(steps.tolist()) | set(wanted)):
-        prob.set_parameter(float(e))
-        try:
-            u = minimize(prob, u, stable=True, max_iter=200, log=None).u
-        except NewtonError as exc:      # keep the last iterate: the stability row reports it
-            log(f"    stable Newton failed at eps = {e:.4g}: {exc}")
-            u = exc.result.u if getattr(exc, "result", None) is not None else u
+        u, _ = stable_state(prob, u, float(e), 200, log, at=f"eps = {e:.4g}")
         if e in wanted:
             taken[e] = u.copy()
     return u, taken
@@ -702,14 +712,7 @@ def sweep_radius(d, u, radii, eps=EPS_END, log=None, checkpoint=None, meta=None)
     prob = d.radius_problem(eps)
     for radius in radii[len(rows):]:
         t0 = time.perf_counter()
-        prob.set_parameter(radius)
-        try:
-            res = minimize(prob, u, stable=True, max_iter=400, log=None)
-            u, iterations = res.u, res.iterations
-        except NewtonError as exc:          # keep the last iterate: its row says it is no result
-            log(f"    stable Newton failed at R2 = {radius:g}: {exc}")
-            u = exc.result.u if getattr(exc, "result", None) is not None else u
-            iterations = None
+        u, iterations = stable_state(prob, u, radius, 400, log, at=f"R2 = {radius:g}")
         check = d.final_check(u, radius, log=log, problem=prob)
         energy = d.radius_energy(prob, u)
         finite_state = math.isfinite(check["residual"]) and math.isfinite(energy)

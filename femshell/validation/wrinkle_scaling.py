@@ -77,9 +77,8 @@ from ..io import save_checkpoint
 from ..shell.element import EDGE_UNKNOWN
 from ..shell.model import FOLD_LIMIT_DEG
 from ..solvers.linear import LinearSolverError
-from ..solvers.newton import NewtonError, minimize
 from .common import saved_state
-from .disk_wrinkles import EQUILIBRIUM_RTOL, Disk, follow, warm_up
+from .disk_wrinkles import EQUILIBRIUM_RTOL, Disk, follow, stable_state, warm_up
 from .framework import Row, timed
 
 NAME = "wrinkle-scaling"
@@ -159,13 +158,8 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
     for step, e in enumerate(np.linspace(0.0, eps, n_steps + 1)[1:], start=1):
         if step <= done:
             continue
-        disk.problem.set_parameter(float(e))
-        try:
-            u = minimize(disk.problem, u, stable=True, max_iter=300, log=None).u
-        except NewtonError as exc:     # keep the last iterate; the stability row judges the end state
-            failures += 1
-            if getattr(exc, "result", None) is not None:
-                u = exc.result.u
+        u, iterations = stable_state(disk.problem, u, float(e), 300)
+        failures += iterations is None      # the last iterate is kept; the stability row judges the end state
         if checkpoint is not None:
             save_checkpoint(checkpoint, {"u": u, "failures": failures, "step": step}, meta)
     disk.problem.set_parameter(float(eps))
