@@ -205,6 +205,55 @@ def test_disk_end_state_is_the_lowest_energy_result_of_the_relaxations():
     assert select_lowest([dict(energy=2.0, result=False), dict(energy=1.0, result=False)]) == 0
 
 
+def test_a_carried_state_is_counted_only_when_it_is_a_lower_result():
+    from femshell.validation import disk_wrinkles as dw
+
+    rec = dict(count=5, rim=[5, 0.3], energy=1.0, result=True, n_negative_final=0, residual=1e-12, over_folded=0,
+               largest_turn=10.0)
+
+    def cand(R2, count, energy, result=True):
+        return ("u%g" % R2, dict(from_R2=R2, count=count, rim=[count, 0.2], energy=energy, result=result,
+                                 n_negative=0 if result else 1, residual=1e-11, over_folded=0, largest_turn=20.0))
+
+    u, r = dw.with_carried("own", rec, [cand(2.5, 6, 0.999), cand(3.5, 4, 0.99, result=False)])
+    assert u == "u2.5" and r["count"] == 6 and r["counted_from"] == 2.5 and r["largest_turn"] == 20.0
+    assert [c["from_R2"] for c in r["carried"]] == [2.5, 3.5]        # the unstable lower one does not count
+    u, r = dw.with_carried("own", rec, [cand(2.5, 5, 1.0 - 1e-12)])   # the same state, reached both ways
+    assert u == "own" and r["count"] == 5 and r["counted_from"] is None
+    u, r = dw.with_carried("own", dict(rec, result=False), [cand(2.5, 6, 1.5)])
+    assert u == "u2.5" and r["result"] and r["counted_from"] == 2.5    # a result beats a lower non-result
+
+
+def test_disk_end_states_carried_to_the_neighbouring_radius_reach_its_own_equilibrium(tmp_path, monkeypatch):
+    """Each end state swept to the neighbouring case's R2 and carried to its mesh relaxes to that case's own
+    state (the dome, grown there independently from the flat disk: energy to 1e-9), which is then kept;
+    saved and read back."""
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    cfg = dict(dw.LEVELS["quick"], pushes=1)
+    solved = {}
+    for c in cfg["cases"]:
+        d = dw._case_disk(dw._case_meta(*c, cfg))
+        u, _ = dw._relax(d.problem, d.model.initial_unknowns(), 0.0, dw.EPS_END, (), None)    # grown in steps
+        check = d.final_check(u, dw.EPS_END)
+        solved[c] = (d, u, dict(count=d.count(d.deflection(u)), energy=float(d.model.energy(u)),
+                                result=check["result"]))
+    monkeypatch.setenv("FEMSHELL_THREADS", "1")
+    out = dw.exchange_states(cfg, solved, tmp_path)
+    assert len(list(tmp_path.glob("carried-*.npz"))) == 2 and len(list(tmp_path.glob("sweep-carried-*.npz"))) == 2
+    for c in cfg["cases"]:
+        d, u, rec = out[c]
+        (carried,) = rec["carried"]
+        assert solved[c][2]["result"] and carried["result"] and carried["count"] == rec["count"] == 0
+        assert carried["energy"] == pytest.approx(solved[c][2]["energy"], rel=1e-9)
+        assert rec["counted_from"] is None and np.array_equal(u, solved[c][1])
+    monkeypatch.setattr(dw, "minimize", lambda *a, **k: pytest.fail("a saved carried state was solved again"))
+    again = dw.exchange_states(cfg, solved, tmp_path)
+    assert all(again[c][2]["carried"] == out[c][2]["carried"] for c in cfg["cases"])
+
+
 def test_disk_relaxations_start_from_the_snap_pushed_both_ways_along_each_critical_mode():
     from types import SimpleNamespace
 

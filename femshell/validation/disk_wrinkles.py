@@ -24,8 +24,8 @@ Procedure (per case h, R2)
 --------------------------
 Mesh: :func:`femshell.linear_buckling._disk_mesh` (gmsh, the circle r = R2 in the mesh edges,
 edge R2/``resolution`` over the whole grown region r < R2, coarser outwards; the full level takes
-resolution 8 at h = 2 and R2 ≤ 4.5, min(2 R2, 24) beyond, edge 0.125 at h = 0.25, and resolution 32 at
-R2/h = 12, see ``LEVELS``), R1 = max(20, f R2) with f = 10 on the full level and the issue's 5 on the quick
+resolution 8 at h = 2 and R2 ≤ 4.5, min(2 R2, 24) beyond, 32 at h = 0.25 and at R2/h = 12, see
+``LEVELS``), R1 = max(20, f R2) with f = 10 on the full level and the issue's 5 on the quick
 one (issue #4 asks R1 ≥ 5 R2; 20 keeps the free edge ≥ 10 h away for h = 2), rigid motions removed by six
 pinned position components (:class:`~femshell.shell.ShellModel` does this for a shell without supports).
 
@@ -73,10 +73,7 @@ sheet's saddle (count 2) where the rim had 6 lobes.
    Four starts are a sample, not a search: on the full level's h = 0.25, R2 = 3 mesh they (and the four
    diagonals between them) end at 5 wrinkles, where a stable 6 lies 0.14 % lower (reached by
    :func:`sweep_radius`, which follows the states in R2 at ε = 0.5: validation/disk_radius_sweep.py,
-   docs/disk-crosscheck.md), and the thin counts 5, 5, 5 do not rise with R2. Carried to finer meshes of that
-   disk (resolution 40-64, validation/disk_mesh_refinement.py) the 6 stays the lowest state found at R2 = 3
-   and the 5 is no longer stable from resolution 48 on; at R2 = 2 a 4 is the lowest: 4, 6, 6 at R2 = 2, 2.5, 3,
-   which rise. The level's thin cases do not use those meshes (hours per case).
+   docs/disk-crosscheck.md). Step 4 adds the states of the neighbouring cases.
    Each end state is then checked independently: it must be an
    equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of the flat disk's at ε = 0.5; a relaxation whose
    Newton failed keeps its last iterate), stable (no negative eigenvalue of the constrained
@@ -84,7 +81,16 @@ sheet's saddle (count 2) where the rim had 6 lobes.
    faces. Past a 90° fold between two triangles the edge unknown runs off towards a 90° turn, where
    its energy flattens out (the gradient falls as 1/θ²), so Newton can even converge there; such a
    state is the mesh's limit, not the shell's (:meth:`~femshell.shell.ShellModel.diagnose`).
-4. **Count**: the deflection w (best-fit plane a + bX + cY removed: the pins let a free disk
+4. **Exchange with the neighbouring R2** (since 2026-12-02, :func:`exchange_states`): each case's end state
+   is carried to the next smaller and the next larger R2 among the cases of its h and resolution: swept in R2
+   at ε = 0.5 on its own mesh in steps of ``EXCHANGE_STEP`` · h (:func:`sweep_radius`: a slowly growing or
+   shrinking disk, which keeps its n-branch while that is stable), carried to the neighbour's mesh
+   (:meth:`Disk.carried`), relaxed there by stable Newton and checked as above. A case counts the
+   lowest-energy result among its own end state and those carried to it (:func:`with_carried`; its own on a
+   tie within ``SAME_STATE_RTOL``), and the rows list them all. It is the R2 sweeps' comparison of the
+   n-branches (docs/disk-crosscheck.md) within the level's own cases: a state that the snap at one R2
+   misses is found there when it is the end state of a neighbour.
+5. **Count**: the deflection w (best-fit plane a + bX + cY removed: the pins let a free disk
    tilt) on the material circle r = ``COUNT_RADIUS`` · R2 just outside the grown region,
    :func:`femshell.analysis.count_wrinkles` (dominant Fourier mode k ≥ 2 of w(φ); 0 when the
    non-axisymmetric part is below ``REL_TOL`` of the amplitude: a dome, possibly shifted or
@@ -92,12 +98,13 @@ sheet's saddle (count 2) where the rim had 6 lobes.
 
 The full level takes hours: each finished case is checkpointed in ``OUT/disk-wrinkles-checkpoints``, a later
 call reads it back instead of solving again, and the cases are solved in two worker processes at once
-(:func:`solve_cases`).
+(:func:`solve_cases`); so are the carried states of step 4 (:func:`exchange_states`).
 
 Rows: per case the count at ε = 0.5 (the paper's count in the quantity text; no reference,
 no tolerance: the paper is a spring network and our continuum numbers need not agree), the
 first bifurcation ε and n, the number of branch switches and of folds met, whether the final
-state had to be relaxed, and the number of negative eigenvalues at the final state (tolerance 0:
+state had to be relaxed, the states carried from the neighbouring R2 and which one is counted, and the
+number of negative eigenvalues at the counted state (tolerance 0:
 every accepted state must be stable). Across cases: the counts at each h must not decrease with R2,
 and the count at h = 0.25, R2 = 3 must not be smaller than at h = 2, R2 = 3; on the full level, whose
 grid spans the wrinkling threshold, the counts must also rise with R2 at each h and from h = 2 to
@@ -167,20 +174,25 @@ NU = 0.5
 #: the membrane law (module docstring: SVK has no stable state at h = 2, R2 <= 1.5). The thin disks need the
 #: grown region refined throughout: their rim folds into lobes across r = 0.6-1.0 R2, and on the band mesh
 #: (edges growing to 0.4 at 0.7 R2) the folds run to the 90-degree limit or relax into a dome (the thin case
-#: before 2026-11-28: a dome with 7 % lobes, count 0). h = 0.25 takes edge 0.125 up to R2 = 2.5; at R2 = 4 that
-#: mesh does not carry the folds (measured: 3 normals at 90 degrees), so the thin series stops at R2 = 3
-#: (docs/disk-crosscheck.md). h = 2 continues past the paper's range to R2 = 24 (R2/h = 12, the thin disk's at
-#: R2 = 3), because our h = 2 disk is a dome up to R2 = 8 and wrinkles from R2 = 10 (edge 0.5 = h/4 at R2 = 8-12,
-#: resolution 24 at 16). Both disks of R2/h = 12 take resolution 32: with R1 = 10 R2 their deeper dome folds past
-#: what 24 carries. ``rise_required`` makes the rise with R2 and with 1/h a pass criterion, as issue 4 asks;
-#: ``outer_factor``: R1 = max(20, outer_factor · R2); ``pushes``: relaxation starts where the shell snaps
-#: (:func:`follow`)
+#: before 2026-11-28: a dome with 7 % lobes, count 0). h = 0.25 takes resolution 32 at every R2 (since
+#: 2026-12-02; edge 0.125 at R2 = 2 and 2.5 before): on edge 0.125 the lobes fold within one element row and
+#: the states there are not those of finer meshes (the R2 sweep on resolution 20 keeps a 5 that the
+#: resolution-32 family does not have), while the resolution-32 family's states held when carried up to
+#: resolution 64. One resolution also gives the thin series one mesh density relative to R2, as the sweeps'
+#: one mesh has (gmsh's meshes of the scaled disks differ in detail: 7 310 vertices at R2 = 2, 7 329 at 3).
+#: At R2 = 4 that is edge 0.125 again, which does not carry the folds (3 normals at 90 degrees), so the thin
+#: series stops at R2 = 3 (docs/disk-crosscheck.md). h = 2 continues past the paper's range to R2 = 24
+#: (R2/h = 12, the thin disk's at R2 = 3), because our h = 2 disk is a dome up to R2 = 8 and wrinkles from
+#: R2 = 10 (edge 0.5 = h/4 at R2 = 8-12, resolution 24 at 16). Both disks of R2/h = 12 take resolution 32:
+#: with R1 = 10 R2 their deeper dome folds past what 24 carries. ``rise_required`` makes the rise with R2 and
+#: with 1/h a pass criterion, as issue 4 asks; ``outer_factor``: R1 = max(20, outer_factor · R2); ``pushes``:
+#: relaxation starts where the shell snaps (:func:`follow`)
 LEVELS = {
     "quick": {"cases": [(2.0, 3.0, 5), (2.0, 4.0, 5)], "refine_inside": True, "law": "svk", "outer_factor": 5.0,
               "pushes": 4},
     "full": {"cases": [(2.0, r, 8) for r in (1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5)]
              + [(2.0, 8.0, 16), (2.0, 10.0, 20), (2.0, 12.0, 24), (2.0, 16.0, 24), (2.0, 24.0, 32)]
-             + [(0.25, 2.0, 16), (0.25, 2.5, 20), (0.25, 3.0, 32)],
+             + [(0.25, r, 32) for r in (2.0, 2.5, 3.0)],
              "refine_inside": True, "law": "neo-hookean", "rise_required": True, "outer_factor": 10.0, "pushes": 4},
 }
 #: R1 / R2 of the free edge where R2 > 20 / OUTER_FACTOR (:func:`outer_radius`; the levels set their own)
@@ -801,6 +813,16 @@ def _solve_case_in_worker(meta, checkpoint, echo):
 WORKER_ENV = {"FEMSHELL_THREADS": "1", "MKL_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
 
+def case_checkpoint(checkpoints, case):
+    """Where :func:`solve_cases` keeps the (h, R2, resolution) ``case`` in the directory ``checkpoints``."""
+    return checkpoints / f"case-h{case[0]:g}-R2{case[1]:g}-res{case[2]}.npz"
+
+
+def carried_checkpoint(checkpoints, source, target):
+    """Where :func:`exchange_states` keeps the end state of case ``source`` carried to case ``target``."""
+    return checkpoints / f"carried-h{source[0]:g}-R2{source[1]:g}-to-R2{target[1]:g}-res{source[2]}.npz"
+
+
 def solve_cases(cfg, checkpoints=None, log=None):
     """Every case of a level: {(h, R2, resolution): (disk, u, record)}.
 
@@ -811,7 +833,7 @@ def solve_cases(cfg, checkpoints=None, log=None):
     metas = {c: _case_meta(*c, cfg) for c in cfg["cases"]}
     if checkpoints is None:
         return {c: solve_case(m, log=log) for c, m in metas.items()}
-    path = {c: checkpoints / f"case-h{c[0]:g}-R2{c[1]:g}-res{c[2]}.npz" for c in cfg["cases"]}
+    path = {c: case_checkpoint(checkpoints, c) for c in cfg["cases"]}
     todo = sorted((c for c in cfg["cases"] if saved_state(path[c], metas[c]) is None),
                   key=lambda c: (-c[1] / c[0], -c[2]))
     workers = min(len(todo), element_threads())
@@ -819,23 +841,165 @@ def solve_cases(cfg, checkpoints=None, log=None):
         log(f"  {len(todo)} of {len(metas)} cases to solve ({len(metas) - len(todo)} read back from {checkpoints})"
             + (f", {workers} at once" if workers > 1 else ""))
     if workers > 1:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        saved_env = {k: os.environ.get(k) for k in WORKER_ENV}
-        os.environ.update(WORKER_ENV)           # a spawned worker reads these when its libraries load
-        try:
-            with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                                     initializer=warm_up) as pool:
-                for f in [pool.submit(_solve_case_in_worker, metas[c], path[c], log is not None) for c in todo]:
-                    f.result()
-        finally:
-            for k, v in saved_env.items():
-                if v is None:
-                    os.environ.pop(k, None)
-                else:
-                    os.environ[k] = v
+        _in_workers(workers, [(_solve_case_in_worker, metas[c], path[c], log is not None) for c in todo])
     return {c: solve_case(metas[c], path[c], log=log) for c in cfg["cases"]}
+
+
+def _in_workers(workers, jobs):
+    """Run ``jobs`` ((function, *args), in order) in ``workers`` spawned processes of one core each
+    (``WORKER_ENV``), every one warmed up first; an error in a job is raised here."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    saved_env = {k: os.environ.get(k) for k in WORKER_ENV}
+    os.environ.update(WORKER_ENV)           # a spawned worker reads these when its libraries load
+    try:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                 initializer=warm_up) as pool:
+            for f in [pool.submit(*job) for job in jobs]:
+                f.result()
+    finally:
+        for k, v in saved_env.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+
+#: R2/h step of the sweep (:func:`sweep_radius`) that carries a case's end state to the next R2 of its series
+#: (the R2 studies' step: R2 by 0.0625 at h = 0.25)
+EXCHANGE_STEP = 0.25
+
+
+def neighbour_pairs(cases):
+    """(source, target) pairs of cases whose end states are exchanged (:func:`carried_to_neighbour`): each case
+    and the next larger R2 among the cases of its h and resolution (one mesh density relative to R2), both ways.
+
+    >>> neighbour_pairs([(2.0, 3.0, 8), (2.0, 4.0, 8), (2.0, 8.0, 16), (0.25, 3.0, 32)])
+    [((2.0, 3.0, 8), (2.0, 4.0, 8)), ((2.0, 4.0, 8), (2.0, 3.0, 8))]
+    """
+    series = {}
+    for c in cases:
+        series.setdefault((c[0], c[2]), []).append(c)
+    pairs = []
+    for group in series.values():
+        group = sorted(group, key=lambda c: c[1])
+        for a, b in zip(group, group[1:]):
+            pairs += [(a, b), (b, a)]
+    return pairs
+
+
+def exchange_radii(R2_from, R2_to, h, step=EXCHANGE_STEP):
+    """Equal radius steps of at most ``step`` · h from R2_from (excluded) to R2_to (included).
+
+    >>> exchange_radii(3.0, 2.5, 0.25)
+    [2.9375, 2.875, 2.8125, 2.75, 2.6875, 2.625, 2.5625, 2.5]
+    """
+    n = max(1, math.ceil(abs(R2_to - R2_from) / (step * h) - 1e-9))
+    return [round(R2_from + (R2_to - R2_from) * k / n, 12) for k in range(1, n + 1)]
+
+
+def carried_to_neighbour(d_from, u_from, d_to, log=None, checkpoint=None, meta=None):
+    """The end state u_from of the case on disk ``d_from`` carried to the neighbouring case's disk ``d_to`` (the
+    same h, another R2): swept in R2 at ε = 0.5 on its own mesh (:func:`sweep_radius`, :func:`exchange_radii`),
+    so that it follows its n-branch while that is stable as a slowly growing disk would, then carried to d_to's
+    mesh (:meth:`Disk.carried`), relaxed there by stable Newton and checked as a case's final state.
+
+    Four relaxations from the snap are a sample of the many stable states past it (module docstring, step 3);
+    the neighbours' states, carried over, are more of them. Returns (u on d_to, candidate: from_R2, count, rim,
+    energy, result, n_negative, residual, over_folded, largest_turn). With ``checkpoint`` (an .npz path) the
+    sweep is saved step by step beside it (``sweep-`` + its name, resumed) and the result in it (read back
+    by a later call with the same ``meta``).
+    """
+    meta = dict(meta or {}, step=EXCHANGE_STEP)
+    state = saved_state(checkpoint, meta) if checkpoint is not None else None
+    if state is not None:
+        return np.array(state["u"]), json.loads(str(state["candidate"]))
+    log = log or _quiet
+    sweep_ck = None if checkpoint is None else checkpoint.with_name("sweep-" + checkpoint.name)
+    radii = exchange_radii(d_from.R2, d_to.R2, d_from.h)
+    _, states = sweep_radius(d_from, u_from, radii, log=log, checkpoint=sweep_ck, meta=meta)
+    u, _ = stable_state(d_to.problem, d_to.carried(d_from, states[-1]), EPS_END, 400, log,
+                        at=f"eps = {EPS_END:g} (carried from R2 = {d_from.R2:g})")
+    check = d_to.final_check(u, EPS_END, log=log)
+    w = d_to.deflection(u)
+    energy = float(d_to.model.energy(u))
+    finite_state = math.isfinite(energy) and math.isfinite(check["residual"]) and bool(np.all(np.isfinite(u)))
+    rim = d_to.rim_mode(w) if finite_state else (0, math.nan)
+    candidate = dict(from_R2=float(d_from.R2), count=int(d_to.count(w)) if finite_state else None,
+                     rim=[int(rim[0]), float(rim[1])], energy=energy if finite_state else None,
+                     n_negative=check["n_negative"], residual=check["residual"] if finite_state else None,
+                     over_folded=int(check["over_folded"]), largest_turn=float(check["largest_turn"]),
+                     result=bool(finite_state and check["result"]))
+    log(f"    carried from R2 = {d_from.R2:g} to {d_to.R2:g}: {candidate['count']} wrinkles, energy "
+        f"{energy:.8g}, " + ("a resolved stable equilibrium" if candidate["result"] else "not a result"))
+    if checkpoint is not None and finite_state:
+        save_checkpoint(checkpoint, {"u": np.asarray(u), "candidate": json.dumps(candidate, allow_nan=False)}, meta)
+    return u, candidate
+
+
+#: a carried state is counted only when its energy is below the case's own by more than this (relative): one
+#: state reached both ways differs by round-off (2e-16 measured on the quick level's dome), distinct ones by
+#: 1e-5 to 1e-2 (docs/disk-crosscheck.md)
+SAME_STATE_RTOL = 1e-9
+
+
+def with_carried(u, rec, carried):
+    """A case's end state after the exchange: (u, record) of the lowest-energy resolved stable equilibrium among
+    its own state (u, ``rec``, :func:`case_record`) and the ``carried`` ones ((u, candidate) of
+    :func:`carried_to_neighbour`); its own when none is lower by more than ``SAME_STATE_RTOL``. The record
+    gains ``carried`` (the candidates) and ``counted_from`` (the R2 the counted state came from, None for its
+    own), and its final-state numbers become those of the counted state."""
+    own = dict(energy=rec["energy"], result=rec["result"])
+    k = select_lowest([own] + [c for _, c in carried])
+    rec = dict(rec, carried=[c for _, c in carried], counted_from=None)
+    if k == 0:
+        return u, rec
+    u_c, c = carried[k - 1]
+    if own["result"] and own["energy"] - c["energy"] <= SAME_STATE_RTOL * abs(own["energy"]):
+        return u, rec
+    u = u_c
+    rec.update(count=c["count"], rim=c["rim"], energy=c["energy"], result=c["result"], n_negative_final=c["n_negative"],
+               residual=c["residual"], over_folded=c["over_folded"], largest_turn=c["largest_turn"],
+               counted_from=c["from_R2"])
+    return u, rec
+
+
+def _carry_in_worker(meta_from, ck_from, meta_to, checkpoint, echo):
+    """:func:`carried_to_neighbour` in a worker process, the source state read from its case's checkpoint."""
+    tag = f"[h={meta_to['h']:g} R2={meta_from['R2']:g} -> {meta_to['R2']:g}]"
+    log = (lambda m: print(f"{tag} {m.strip()}", flush=True)) if echo else None
+    d_from, u_from, _ = solve_case(meta_from, ck_from)
+    carried_to_neighbour(d_from, u_from, _case_disk(meta_to), log, checkpoint, {"from": meta_from, "to": meta_to})
+
+
+def exchange_states(cfg, solved, checkpoints=None, log=None):
+    """Every case's end state carried to its neighbours (:func:`neighbour_pairs`) and the lowest result counted
+    (:func:`with_carried`): {case: (disk, u, record)} like :func:`solve_cases`. With ``checkpoints`` each carried
+    state is saved there (``carried-…-to-R2….npz``, its sweep beside it) and read back later, and the ones not yet
+    saved are computed in worker processes as the cases are."""
+    pairs = neighbour_pairs(cfg["cases"])
+    metas = {c: _case_meta(*c, cfg) for c in cfg["cases"]}
+    path = {}
+    if checkpoints is not None:
+        path = {(a, b): carried_checkpoint(checkpoints, a, b) for a, b in pairs}
+        case_ck = {c: case_checkpoint(checkpoints, c) for c in cfg["cases"]}
+        todo = [(a, b) for a, b in pairs if saved_state(path[a, b], {"from": metas[a], "to": metas[b],
+                                                                      "step": EXCHANGE_STEP}) is None]
+        workers = min(len(todo), element_threads())
+        if todo and log:
+            log(f"  {len(todo)} of {len(pairs)} end states to carry to a neighbouring R2"
+                + (f", {workers} at once" if workers > 1 else ""))
+        if workers > 1:
+            _in_workers(workers, [(_carry_in_worker, metas[a], case_ck[a], metas[b], path[a, b], log is not None)
+                                  for a, b in sorted(todo, key=lambda p: (-p[0][1] / p[0][0], -p[0][2]))])
+    carried = {c: [] for c in cfg["cases"]}
+    for a, b in pairs:
+        d_from, u_from, _ = solved[a]
+        carried[b].append(carried_to_neighbour(d_from, u_from, solved[b][0], log, path.get((a, b)),
+                                               {"from": metas[a], "to": metas[b]}))
+    return {c: (d, *with_carried(u, rec, carried[c])) for c, (d, u, rec) in solved.items()}
 
 
 def run(level, out_dir=None, log=None):
@@ -847,7 +1011,7 @@ def run(level, out_dir=None, log=None):
         checkpoints.mkdir(parents=True, exist_ok=True)
         if log:
             log(f"  checkpoints in {checkpoints}")
-    solved = solve_cases(cfg, checkpoints, log)
+    solved = exchange_states(cfg, solve_cases(cfg, checkpoints, log), checkpoints, log)
     rows, results = [], []
     for (h, R2, resolution), (d, u, rec) in solved.items():
         w = d.deflection(u)
@@ -883,12 +1047,22 @@ def run(level, out_dir=None, log=None):
             ok = [c for c in cands if c["result"]]
             listing = ", ".join(f"{c['push']}: {c['count']}" + ("" if c["result"] else " (not a result)") for c in cands)
             rows.append(Row(f"relaxations from the snap that end in a resolved stable state ({listing}; the lowest-energy "
-                            f"one, {rec['candidates'][rec['chosen']]['push']}, is counted)" + at, len(ok), None, None,
-                            nv, wall))
+                            f"one, {rec['candidates'][rec['chosen']]['push']}, is the case's own end state)" + at, len(ok),
+                            None, None, nv, wall))
             if len(ok) > 1:
                 e = [c["energy"] for c in ok]
                 rows.append(Row("energy spread of those states (max - min) / min" + at, (max(e) - min(e)) / min(e),
                                 None, None, nv, wall))
+        if rec["carried"]:
+            own = rec["candidates"][rec["chosen"]]
+            listing = ", ".join(f"from R2={c['from_R2']:g}: {c['count']}" + (
+                f" ({(c['energy'] - own['energy']) / own['energy']:+.2e} in energy)" if c["result"] else
+                " (not a result)") for c in rec["carried"])
+            counted = ("its own" if rec["counted_from"] is None else f"the one from R2={rec['counted_from']:g}")
+            rows.append(Row(f"states carried from the neighbouring R2 by a sweep at eps=0.5 that end in a resolved "
+                            f"stable state here ({listing}; against its own {own['count']}; the lowest-energy one, "
+                            f"{counted}, is counted)" + at, sum(c["result"] for c in rec["carried"]), None, None,
+                            nv, wall))
         undecided = rec["n_negative_final"] is None
         rows.append(Row("negative eigenvalues of the constrained Hessian at eps=0.5" + at
                         + (": not decided, the Hessian is not finite" if undecided else ""),
