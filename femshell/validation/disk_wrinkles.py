@@ -866,7 +866,6 @@ def _in_workers(workers, jobs):
                 os.environ[k] = v
 
 
-
 #: R2/h step of the sweep (:func:`sweep_radius`) that carries a case's end state to the next R2 of its series
 #: (the R2 studies' step: R2 by 0.0625 at h = 0.25)
 EXCHANGE_STEP = 0.25
@@ -910,9 +909,8 @@ def carried_to_neighbour(d_from, u_from, d_to, log=None, checkpoint=None, meta=N
     the neighbours' states, carried over, are more of them. Returns (u on d_to, candidate: from_R2, count, rim,
     energy, result, n_negative, residual, over_folded, largest_turn). With ``checkpoint`` (an .npz path) the
     sweep is saved step by step beside it (``sweep-`` + its name, resumed) and the result in it (read back
-    by a later call with the same ``meta``).
+    by a later call with the same ``meta``, :func:`carried_meta`).
     """
-    meta = dict(meta or {}, step=EXCHANGE_STEP)
     state = saved_state(checkpoint, meta) if checkpoint is not None else None
     if state is not None:
         return np.array(state["u"]), json.loads(str(state["candidate"]))
@@ -966,12 +964,18 @@ def with_carried(u, rec, carried):
     return u, rec
 
 
+def carried_meta(meta_from, meta_to):
+    """What a carried state's checkpoint must agree on with the run that reads it back: both cases' metas
+    (:func:`_case_meta`) and the sweep's step."""
+    return {"from": meta_from, "to": meta_to, "step": EXCHANGE_STEP}
+
+
 def _carry_in_worker(meta_from, ck_from, meta_to, checkpoint, echo):
     """:func:`carried_to_neighbour` in a worker process, the source state read from its case's checkpoint."""
     tag = f"[h={meta_to['h']:g} R2={meta_from['R2']:g} -> {meta_to['R2']:g}]"
     log = (lambda m: print(f"{tag} {m.strip()}", flush=True)) if echo else None
     d_from, u_from, _ = solve_case(meta_from, ck_from)
-    carried_to_neighbour(d_from, u_from, _case_disk(meta_to), log, checkpoint, {"from": meta_from, "to": meta_to})
+    carried_to_neighbour(d_from, u_from, _case_disk(meta_to), log, checkpoint, carried_meta(meta_from, meta_to))
 
 
 def exchange_states(cfg, solved, checkpoints=None, log=None):
@@ -985,8 +989,7 @@ def exchange_states(cfg, solved, checkpoints=None, log=None):
     if checkpoints is not None:
         path = {(a, b): carried_checkpoint(checkpoints, a, b) for a, b in pairs}
         case_ck = {c: case_checkpoint(checkpoints, c) for c in cfg["cases"]}
-        todo = [(a, b) for a, b in pairs if saved_state(path[a, b], {"from": metas[a], "to": metas[b],
-                                                                      "step": EXCHANGE_STEP}) is None]
+        todo = [(a, b) for a, b in pairs if saved_state(path[a, b], carried_meta(metas[a], metas[b])) is None]
         workers = min(len(todo), element_threads())
         if todo and log:
             log(f"  {len(todo)} of {len(pairs)} end states to carry to a neighbouring R2"
@@ -998,7 +1001,7 @@ def exchange_states(cfg, solved, checkpoints=None, log=None):
     for a, b in pairs:
         d_from, u_from, _ = solved[a]
         carried[b].append(carried_to_neighbour(d_from, u_from, solved[b][0], log, path.get((a, b)),
-                                               {"from": metas[a], "to": metas[b]}))
+                                               carried_meta(metas[a], metas[b])))
     return {c: (d, *with_carried(u, rec, carried[c])) for c, (d, u, rec) in solved.items()}
 
 
