@@ -254,6 +254,41 @@ def test_disk_end_states_carried_to_the_neighbouring_radius_reach_its_own_equili
     assert all(again[c][2]["carried"] == out[c][2]["carried"] for c in cfg["cases"])
 
 
+def test_a_disk_that_is_another_magnified_takes_its_end_state_magnified_and_checked_there():
+    """The h = 2, R2 = 4 disk is the h = 1, R2 = 2 one magnified by 2 (R1 = 10 R2 both): the thinner's dome,
+    magnified, is the thicker's own equilibrium (grown there independently from the flat disk: energy to 1e-9,
+    8 = 2³ times the thinner's), stable and counted there; disks of other meshes are refused."""
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    cfg = {"cases": [(2.0, 4.0, 3), (1.0, 2.0, 3)], "refine_inside": True, "law": "neo-hookean",
+           "outer_factor": 10.0, "pushes": 1}
+    twin, rep = cfg["cases"]
+    assert dw.twins(cfg["cases"], cfg) == {twin: rep, rep: rep}
+    grown = {}
+    for c in cfg["cases"]:
+        d = dw._case_disk(dw._case_meta(*c, cfg))
+        u, _ = dw._relax(d.problem, d.model.initial_unknowns(), 0.0, dw.EPS_END, (), None)
+        grown[c] = (d, u, float(d.model.energy(u)))
+    d, u, energy = grown[rep]
+    candidates = [dict(push=None, count=0, energy=energy, result=True)]
+    solved = {rep: (d, u, dict(count=d.count(d.deflection(u)), energy=energy, result=True, candidates=candidates,
+                               carried=[], counted_from=None))}
+    out = dw.with_twins(cfg, solved)
+    assert out[rep] is solved[rep] and list(out) == cfg["cases"]
+    d2, u2, rec = out[twin]
+    assert rec["twin_of"] == [1.0, 2.0] and rec["result"] and rec["n_negative_final"] == 0
+    assert rec["residual"] <= dw.EQUILIBRIUM_RTOL and rec["count"] == solved[rep][2]["count"]
+    assert abs(d.deflection(u)).max() > 0.1 * d.h          # a dome, not the flat disk
+    assert rec["energy"] == pytest.approx(8.0 * energy, rel=1e-12) == rec["candidates"][0]["energy"]
+    assert rec["energy"] == pytest.approx(grown[twin][2], rel=1e-9)
+    np.testing.assert_allclose(d2.model.positions(u2), 2.0 * d.model.positions(u), rtol=0, atol=1e-12)
+    other = dw.Disk(2.0, 4.0, 4, R1=40.0, law="neo-hookean", refine_inside=True)
+    with pytest.raises(ValueError, match="not one mesh scaled"):
+        dw.magnified(d, u, other)
+
+
 def test_disk_relaxations_start_from_the_snap_pushed_both_ways_along_each_critical_mode():
     from types import SimpleNamespace
 
@@ -276,9 +311,11 @@ def test_disk_relaxations_start_from_the_snap_pushed_both_ways_along_each_critic
 
 def test_disk_cases_solved_in_worker_processes_are_checkpointed_and_read_back(tmp_path, monkeypatch):
     """The full level's path: cases solved two at once in spawned workers, each saved; a second call reads them
-    back without solving, the same states as solving here; a checkpoint of another setting is refused."""
+    back without solving, the same states as solving here; a checkpoint of another setting, or whose saved
+    numbers its state does not give again, is refused."""
     import numpy as np
 
+    from femshell.io import load_checkpoint, save_checkpoint
     from femshell.validation import disk_wrinkles as dw
 
     cfg = {"cases": [(2.0, 3.0, 3), (2.0, 4.0, 3)], "refine_inside": False, "law": "svk", "outer_factor": 5.0,
@@ -298,3 +335,9 @@ def test_disk_cases_solved_in_worker_processes_are_checkpointed_and_read_back(tm
     assert all(np.array_equal(again[c][1], solved[c][1]) for c in cfg["cases"])
     with pytest.raises(ValueError, match="pushes"):
         dw.solve_cases(dict(cfg, pushes=4), tmp_path)
+    path = dw.case_checkpoint(tmp_path, c)          # a saved count that this code does not find for its state
+    state, meta = load_checkpoint(path)
+    record = json.loads(str(state["record"]))
+    save_checkpoint(path, {"u": state["u"], "record": json.dumps(dict(record, count=record["count"] + 1))}, meta)
+    with pytest.raises(ValueError, match="differs from what it saved"):
+        dw.solve_cases(cfg, tmp_path)

@@ -24,8 +24,8 @@ Procedure (per case h, R2)
 --------------------------
 Mesh: :func:`femshell.linear_buckling._disk_mesh` (gmsh, the circle r = R2 in the mesh edges,
 edge R2/``resolution`` over the whole grown region r < R2, coarser outwards; the full level takes
-resolution 8 at h = 2 and R2 ≤ 4.5, min(2 R2, 24) beyond, 32 at h = 0.25 and at R2/h = 12, see
-``LEVELS``), R1 = max(20, f R2) with f = 10 on the full level and the issue's 5 on the quick
+resolution 8 at h = 2 and R2 ≤ 4.5, 2 R2 at R2 = 8, 10, 12, and 32 from R2/h = 8 on (h = 0.25, and h = 2 at
+R2 = 16, 20, 24), see ``LEVELS``), R1 = max(20, f R2) with f = 10 on the full level and the issue's 5 on the quick
 one (issue #4 asks R1 ≥ 5 R2; 20 keeps the free edge ≥ 10 h away for h = 2), rigid motions removed by six
 pinned position components (:class:`~femshell.shell.ShellModel` does this for a shell without supports).
 
@@ -42,6 +42,14 @@ whose rim folds by more than resolution 24 carries (a run of 2026-11-29: a mid-e
 result), so they take resolution 32, on which the thin one was resolved at R1 = 10 and 20 R2
 (docs/disk-crosscheck.md). With the issue's 5 R2 the counting circle of h = 2, R2 = 24 saw the surrounding
 sheet's saddle (count 2) where the rim had 6 lobes.
+
+From R2/h = 8 on the full level takes resolution 32 at both h (the thin series' reason for it, lobes folding
+within an element row, is dimensionless), so its h = 2 disks of R2 = 16, 20, 24 are its h = 0.25 disks of
+R2 = 2, 2.5, 3 magnified by 8, mesh included (gmsh meshes them alike to the bit: measured at R2/h = 12).
+Each such scaled problem is solved once,
+at its thinnest case, and its end state is magnified to the others and checked and counted there
+(:func:`twins`, :func:`with_twins`; since 2026-12-02: before, h = 2, R2 = 16 took resolution 24 and both disks
+of R2/h = 12 were solved, 5 wrinkles each, 5 300 s of a core apiece).
 
 1. **Flat branch**: pseudo-arclength continuation in ε
    (:class:`~femshell.solvers.continuation.GrowthParameter`) with the inertia of the constrained
@@ -191,7 +199,7 @@ LEVELS = {
     "quick": {"cases": [(2.0, 3.0, 5), (2.0, 4.0, 5)], "refine_inside": True, "law": "svk", "outer_factor": 5.0,
               "pushes": 4},
     "full": {"cases": [(2.0, r, 8) for r in (1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5)]
-             + [(2.0, 8.0, 16), (2.0, 10.0, 20), (2.0, 12.0, 24), (2.0, 16.0, 24), (2.0, 24.0, 32)]
+             + [(2.0, 8.0, 16), (2.0, 10.0, 20), (2.0, 12.0, 24)] + [(2.0, r, 32) for r in (16.0, 20.0, 24.0)]
              + [(0.25, r, 32) for r in (2.0, 2.5, 3.0)],
              "refine_inside": True, "law": "neo-hookean", "rise_required": True, "outer_factor": 10.0, "pushes": 4},
 }
@@ -790,7 +798,9 @@ def solve_case(meta, checkpoint=None, log=None):
         if len(state["u"]) != len(d.model.initial_unknowns()):
             raise ValueError(f"{checkpoint} has {len(state['u'])} unknowns, this mesh {len(d.model.initial_unknowns())}: "
                              "another mesh generator made it; remove it to start afresh")
-        return d, state["u"], json.loads(str(state["record"]))
+        record = json.loads(str(state["record"]))
+        check_saved(d, state["u"], record, "n_negative_final", checkpoint)
+        return d, state["u"], record
     r = follow(meta["h"], meta["R2"], meta["resolution"], log=log, law=meta["law"],
                refine_inside=meta["refine_inside"], R1=meta["R1"], pushes=meta["pushes"])
     record = case_record(r)
@@ -801,6 +811,28 @@ def solve_case(meta, checkpoint=None, log=None):
             if log:
                 log(f"    not checkpointed: {exc}")
     return r["disk"], r["u"], record
+
+
+#: a saved state's energy, computed again when it is read back, agrees with the saved one to this (relative)
+SAVED_ENERGY_RTOL = 1e-9
+
+
+def check_saved(d, u, saved, negative_key, checkpoint):
+    """Check a state u of disk d read back from ``checkpoint`` as a final state (:meth:`Disk.final_check`) and
+    count it again: a ValueError naming the difference when its count, negative eigenvalues, being a result or
+    energy (to ``SAVED_ENERGY_RTOL``) differ from the ``saved`` numbers (a record, or a carried candidate whose
+    negative eigenvalues are under ``negative_key``). So the rows of a resumed run are this code's own, and a
+    checkpoint made by other code is refused rather than reported."""
+    check = d.final_check(u, EPS_END)
+    energy = float(d.model.energy(u))
+    now = dict(count=int(d.count(d.deflection(u))), n_negative=check["n_negative"], result=bool(check["result"]))
+    was = dict(count=saved["count"], n_negative=saved[negative_key], result=bool(saved["result"]))
+    differ = {k: (was[k], now[k]) for k in now if was[k] != now[k]}
+    if saved["energy"] is not None and abs(energy - saved["energy"]) > SAVED_ENERGY_RTOL * abs(saved["energy"]):
+        differ["energy"] = (saved["energy"], energy)
+    if differ:
+        raise ValueError(f"{checkpoint}: its state checked again differs from what it saved (saved, now: {differ}); "
+                         "other code made it: remove it to solve the case afresh")
 
 
 def _solve_case_in_worker(meta, checkpoint, echo):
@@ -913,7 +945,9 @@ def carried_to_neighbour(d_from, u_from, d_to, log=None, checkpoint=None, meta=N
     """
     state = saved_state(checkpoint, meta) if checkpoint is not None else None
     if state is not None:
-        return np.array(state["u"]), json.loads(str(state["candidate"]))
+        u, candidate = np.array(state["u"]), json.loads(str(state["candidate"]))
+        check_saved(d_to, u, candidate, "n_negative", checkpoint)
+        return u, candidate
     log = log or _quiet
     sweep_ck = None if checkpoint is None else checkpoint.with_name("sweep-" + checkpoint.name)
     radii = exchange_radii(d_from.R2, d_to.R2, d_from.h)
@@ -1005,6 +1039,85 @@ def exchange_states(cfg, solved, checkpoints=None, log=None):
     return {c: (d, *with_carried(u, rec, carried[c])) for c, (d, u, rec) in solved.items()}
 
 
+def scaled_problem(case, cfg):
+    """(R2/h, R1/R2, resolution) of the (h, R2, resolution) ``case`` on a level ``cfg``: what fixes its states up to
+    its scale (module docstring, "no length of its own"), the mesh included (:func:`_disk_mesh` meshes a disk
+    scaled by a power of two alike, to round-off)."""
+    h, R2, resolution = case
+    return (round(R2 / h, 9), round(outer_radius(R2, cfg["outer_factor"]) / R2, 9), int(resolution))
+
+
+def twins(cases, cfg):
+    """{case: the case it is solved as}: the thinnest case of its :func:`scaled_problem` (itself when it is).
+
+    >>> cfg = {"outer_factor": 10.0}
+    >>> twins([(2.0, 16.0, 32), (2.0, 12.0, 24), (0.25, 2.0, 32)], cfg)[(2.0, 16.0, 32)]
+    (0.25, 2.0, 32)
+    >>> twins([(2.0, 16.0, 32), (2.0, 12.0, 24), (0.25, 2.0, 32)], cfg)[(2.0, 12.0, 24)]
+    (2.0, 12.0, 24)
+    """
+    thinnest = {}
+    for c in sorted(cases, key=lambda c: c[0]):
+        thinnest.setdefault(scaled_problem(c, cfg), c)
+    return {c: thinnest[scaled_problem(c, cfg)] for c in cases}
+
+
+def magnified(d_from, u, d_to):
+    """State u of the disk ``d_from`` as a state of ``d_to``, the same disk scaled by s = d_to.h / d_from.h: its
+    positions times s, its edge unknowns (dimensionless) as they are; Π scales by s³. A ValueError when d_to's
+    mesh or supports are not d_from's scaled by s."""
+    s = d_to.h / d_from.h
+    a, b = d_from.model, d_to.model
+    size = float(np.ptp(d_to.points, axis=0).max())
+    if (d_from.triangles.shape != d_to.triangles.shape or not np.array_equal(d_from.triangles, d_to.triangles)
+            or np.abs(s * d_from.points - d_to.points).max() > 1e-12 * size or not np.array_equal(a.free, b.free)):
+        raise ValueError(f"the disks h={d_from.h:g} R2={d_from.R2:g} and h={d_to.h:g} R2={d_to.R2:g} are not one "
+                         f"mesh scaled by {s:g}: solve both")
+    q = a.full(u)
+    n = 3 * d_from.n_vertices
+    q[:n] *= s
+    return q[b.free]
+
+
+def with_twins(cfg, solved, log=None):
+    """Every case of the level ``cfg`` from ``solved`` ({case: (disk, u, record)}, the thinnest case of each
+    :func:`scaled_problem`, :func:`twins`): a twin takes its problem's end state :func:`magnified` to its own
+    disk, checked there as a final state (:meth:`Disk.final_check`) and counted there; the record keeps the
+    path's numbers (ε of the first bifurcation, switches, folds, the starts' counts, the carried states, with the
+    energies scaled by s³), its final-state numbers become the twin's own and ``twin_of`` names the problem's
+    case."""
+    out = {}
+    for case, rep in twins(cfg["cases"], cfg).items():
+        if case == rep:
+            out[case] = solved[case]
+            continue
+        t0 = time.perf_counter()
+        d_rep, u_rep, rec_rep = solved[rep]
+        d = _case_disk(_case_meta(*case, cfg))
+        u = magnified(d_rep, u_rep, d)
+        check = d.final_check(u, EPS_END, log=log)
+        w = d.deflection(u)
+        rim = d.rim_mode(w)
+        s = d.h / d_rep.h
+        s3 = s ** 3
+        rec = dict(rec_rep, twin_of=[rep[0], rep[1]], count=int(d.count(w)), rim=[int(rim[0]), float(rim[1])],
+                   energy=float(d.model.energy(u)), n_negative_final=check["n_negative"],
+                   residual=check["residual"], over_folded=int(check["over_folded"]),
+                   largest_turn=check["largest_turn"], result=bool(check["result"]),
+                   candidates=[dict(c, energy=None if c["energy"] is None else c["energy"] * s3)
+                               for c in rec_rep["candidates"]],
+                   carried=[dict(c, energy=None if c["energy"] is None else c["energy"] * s3, from_R2=c["from_R2"] * s)
+                            for c in rec_rep.get("carried", [])],
+                   counted_from=None if rec_rep.get("counted_from") is None else rec_rep["counted_from"] * s,
+                   wall_s=time.perf_counter() - t0)
+        if log:
+            log(f"  h={case[0]:g} R2={case[1]:g}: h={rep[0]:g} R2={rep[1]:g}'s end state magnified by "
+                f"{s:g}: {rec['count']} wrinkles, "
+                + ("a resolved stable equilibrium" if rec["result"] else "not a result"))
+        out[case] = (d, u, rec)
+    return out
+
+
 def run(level, out_dir=None, log=None):
     warm_up()
     cfg = LEVELS[level]
@@ -1014,7 +1127,10 @@ def run(level, out_dir=None, log=None):
         checkpoints.mkdir(parents=True, exist_ok=True)
         if log:
             log(f"  checkpoints in {checkpoints}")
-    solved = exchange_states(cfg, solve_cases(cfg, checkpoints, log), checkpoints, log)
+    # a case that is another's scaled by s has its states magnified by s: each scaled problem is solved once
+    problems = dict(cfg, cases=[c for c, rep in twins(cfg["cases"], cfg).items() if c == rep])
+    solved = with_twins(cfg, exchange_states(problems, solve_cases(problems, checkpoints, log), checkpoints, log),
+                        log)
     rows, results = [], []
     for (h, R2, resolution), (d, u, rec) in solved.items():
         w = d.deflection(u)
@@ -1045,6 +1161,11 @@ def run(level, out_dir=None, log=None):
                         None, None, nv, wall))
         rows.append(Row("final state relaxed by stable Newton (1) or reached on a branch (0)" + at,
                         float(rec["relaxed"]), None, None, nv, wall))
+        if rec.get("twin_of"):
+            th, tR2 = rec["twin_of"]
+            rows.append(Row(f"solved as h={th:g} R2={tR2:g} magnified by {h / th:g} (the same R2/h, R1/R2 and mesh: its "
+                            "path's rows are that case's, its end state is checked and counted here)" + at, h / th,
+                            None, None, nv, wall))
         cands = [c for c in rec["candidates"] if c["push"] is not None]
         if len(cands) > 1:
             ok = [c for c in cands if c["result"]]
