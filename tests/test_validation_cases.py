@@ -265,7 +265,8 @@ def test_a_disk_that_is_another_magnified_takes_its_end_state_magnified_and_chec
     cfg = {"cases": [(2.0, 4.0, 3), (1.0, 2.0, 3)], "refine_inside": True, "law": "neo-hookean",
            "outer_factor": 10.0, "pushes": 1}
     twin, rep = cfg["cases"]
-    assert dw.twins(cfg["cases"], cfg) == {twin: rep, rep: rep}
+    assert dw.twins(cfg["cases"], cfg) == {twin: rep, rep: rep} and dw.meshed_alike(twin, rep, cfg)
+    assert not dw.meshed_alike((2.0, 4.0, 4), rep, cfg)
     grown = {}
     for c in cfg["cases"]:
         d = dw._case_disk(dw._case_meta(*c, cfg))
@@ -275,7 +276,7 @@ def test_a_disk_that_is_another_magnified_takes_its_end_state_magnified_and_chec
     candidates = [dict(push=None, count=0, energy=energy, result=True)]
     solved = {rep: (d, u, dict(count=d.count(d.deflection(u)), energy=energy, result=True, candidates=candidates,
                                carried=[], counted_from=None))}
-    out = dw.with_twins(cfg, solved)
+    out = dw.with_twins(cfg, solved, dw.twins(cfg["cases"], cfg))
     assert out[rep] is solved[rep] and list(out) == cfg["cases"]
     d2, u2, rec = out[twin]
     assert rec["twin_of"] == [1.0, 2.0] and rec["result"] and rec["n_negative_final"] == 0

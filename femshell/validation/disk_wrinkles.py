@@ -48,7 +48,8 @@ within an element row, is dimensionless), so its h = 2 disks of R2 = 16, 20, 24 
 R2 = 2, 2.5, 3 magnified by 8, mesh included (gmsh meshes them alike to the bit: measured at R2/h = 12).
 Each such scaled problem is solved once,
 at its thinnest case, and its end state is magnified to the others and checked and counted there
-(:func:`twins`, :func:`with_twins`; since 2026-12-02: before, h = 2, R2 = 16 took resolution 24 and both disks
+(:func:`twins`, :func:`with_twins`; where another gmsh meshes them otherwise, :func:`meshed_alike` tells
+before anything is solved and each is solved; since 2026-12-02: before, h = 2, R2 = 16 took resolution 24 and both disks
 of R2/h = 12 were solved, 5 wrinkles each, 5 300 s of a core apiece).
 
 1. **Flat branch**: pseudo-arclength continuation in ε
@@ -1062,6 +1063,16 @@ def twins(cases, cfg):
     return {c: thinnest[scaled_problem(c, cfg)] for c in cases}
 
 
+def meshed_alike(case, rep, cfg):
+    """Whether the disks of ``case`` and ``rep`` are one mesh scaled (:func:`_disk_mesh`: points to 1e-12 of the
+    size, the same triangles): a mesh generator that meshes them otherwise makes them two problems."""
+    s = case[0] / rep[0]
+    (p, t), (q, r) = (_disk_mesh(outer_radius(c[1], cfg["outer_factor"]), c[1], c[2],
+                                 refine_inside=cfg["refine_inside"]) for c in (case, rep))
+    return (p.shape == q.shape and np.array_equal(t, r)
+            and np.abs(p - s * q).max() <= 1e-12 * float(np.ptp(p, axis=0).max()))
+
+
 def magnified(d_from, u, d_to):
     """State u of the disk ``d_from`` as a state of ``d_to``, the same disk scaled by s = d_to.h / d_from.h: its
     positions times s, its edge unknowns (dimensionless) as they are; Π scales by s³. A ValueError when d_to's
@@ -1079,15 +1090,15 @@ def magnified(d_from, u, d_to):
     return q[b.free]
 
 
-def with_twins(cfg, solved, log=None):
-    """Every case of the level ``cfg`` from ``solved`` ({case: (disk, u, record)}, the thinnest case of each
-    :func:`scaled_problem`, :func:`twins`): a twin takes its problem's end state :func:`magnified` to its own
+def with_twins(cfg, solved, twin, log=None):
+    """Every case of the level ``cfg`` from ``solved`` ({case: (disk, u, record)} of the cases solved) and ``twin``
+    ({case: the case it is solved as}, :func:`twins`): a twin takes its problem's end state :func:`magnified` to its own
     disk, checked there as a final state (:meth:`Disk.final_check`) and counted there; the record keeps the
     path's numbers (ε of the first bifurcation, switches, folds, the starts' counts, the carried states, with the
     energies scaled by s³), its final-state numbers become the twin's own and ``twin_of`` names the problem's
     case."""
     out = {}
-    for case, rep in twins(cfg["cases"], cfg).items():
+    for case, rep in twin.items():
         if case == rep:
             out[case] = solved[case]
             continue
@@ -1128,9 +1139,10 @@ def run(level, out_dir=None, log=None):
         if log:
             log(f"  checkpoints in {checkpoints}")
     # a case that is another's scaled by s has its states magnified by s: each scaled problem is solved once
-    problems = dict(cfg, cases=[c for c, rep in twins(cfg["cases"], cfg).items() if c == rep])
+    twin = {c: rep if rep == c or meshed_alike(c, rep, cfg) else c for c, rep in twins(cfg["cases"], cfg).items()}
+    problems = dict(cfg, cases=[c for c, rep in twin.items() if c == rep])
     solved = with_twins(cfg, exchange_states(problems, solve_cases(problems, checkpoints, log), checkpoints, log),
-                        log)
+                        twin, log)
     rows, results = [], []
     for (h, R2, resolution), (d, u, rec) in solved.items():
         w = d.deflection(u)
