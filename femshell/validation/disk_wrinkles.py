@@ -45,12 +45,12 @@ sheet's saddle (count 2) where the rim had 6 lobes.
 
 From R2/h = 8 on the full level takes resolution 32 at both h (the thin series' reason for it, lobes folding
 within an element row, is dimensionless), so its h = 2 disks of R2 = 16, 20, 24 are its h = 0.25 disks of
-R2 = 2, 2.5, 3 magnified by 8, mesh included (gmsh meshes them alike to the bit: measured at R2/h = 12).
-Each such scaled problem is solved once,
-at its thinnest case, and its end state is magnified to the others and checked and counted there
-(:func:`twins`, :func:`with_twins`; where another gmsh meshes them otherwise, :func:`meshed_alike` tells
-before anything is solved and each is solved; since 2026-12-02: before, h = 2, R2 = 16 took resolution 24 and both disks
-of R2/h = 12 were solved, 5 wrinkles each, 5 300 s of a core apiece).
+R2 = 2, 2.5, 3 magnified by 8, mesh included (gmsh meshes them alike to the bit, measured). Each such scaled
+problem is solved once, at its thinnest case, and its end state is magnified to the others and checked and
+counted there (:func:`twins`, :func:`with_twins`; where another gmsh meshes them otherwise,
+:func:`meshed_alike` tells before anything is solved, and each is solved). Since 2026-12-02; before, h = 2,
+R2 = 16 took resolution 24, and both disks of R2/h = 12 were solved (5 wrinkles each, 5 300 s of a core
+apiece).
 
 1. **Flat branch**: pseudo-arclength continuation in ε
    (:class:`~femshell.solvers.continuation.GrowthParameter`) with the inertia of the constrained
@@ -1063,14 +1063,19 @@ def twins(cases, cfg):
     return {c: thinnest[scaled_problem(c, cfg)] for c in cases}
 
 
+def _one_mesh_scaled(points, triangles, points_ref, triangles_ref, s):
+    """Whether (points, triangles) is the mesh (points_ref, triangles_ref) scaled by s (points to 1e-12 of the
+    size)."""
+    return (points.shape == points_ref.shape and np.array_equal(triangles, triangles_ref)
+            and np.abs(points - s * points_ref).max() <= 1e-12 * float(np.ptp(points, axis=0).max()))
+
+
 def meshed_alike(case, rep, cfg):
-    """Whether the disks of ``case`` and ``rep`` are one mesh scaled (:func:`_disk_mesh`: points to 1e-12 of the
-    size, the same triangles): a mesh generator that meshes them otherwise makes them two problems."""
-    s = case[0] / rep[0]
+    """Whether :func:`_disk_mesh` meshes the disks of ``case`` and ``rep`` as one mesh scaled: a mesh generator
+    that meshes them otherwise makes them two problems."""
     (p, t), (q, r) = (_disk_mesh(outer_radius(c[1], cfg["outer_factor"]), c[1], c[2],
                                  refine_inside=cfg["refine_inside"]) for c in (case, rep))
-    return (p.shape == q.shape and np.array_equal(t, r)
-            and np.abs(p - s * q).max() <= 1e-12 * float(np.ptp(p, axis=0).max()))
+    return _one_mesh_scaled(p, t, q, r, case[0] / rep[0])
 
 
 def magnified(d_from, u, d_to):
@@ -1079,24 +1084,22 @@ def magnified(d_from, u, d_to):
     mesh or supports are not d_from's scaled by s."""
     s = d_to.h / d_from.h
     a, b = d_from.model, d_to.model
-    size = float(np.ptp(d_to.points, axis=0).max())
-    if (d_from.triangles.shape != d_to.triangles.shape or not np.array_equal(d_from.triangles, d_to.triangles)
-            or np.abs(s * d_from.points - d_to.points).max() > 1e-12 * size or not np.array_equal(a.free, b.free)):
+    if not (_one_mesh_scaled(d_to.points, d_to.triangles, d_from.points, d_from.triangles, s)
+            and np.array_equal(a.free, b.free)):
         raise ValueError(f"the disks h={d_from.h:g} R2={d_from.R2:g} and h={d_to.h:g} R2={d_to.R2:g} are not one "
                          f"mesh scaled by {s:g}: solve both")
     q = a.full(u)
-    n = 3 * d_from.n_vertices
-    q[:n] *= s
+    q[: 3 * d_from.n_vertices] *= s
     return q[b.free]
 
 
 def with_twins(cfg, solved, twin, log=None):
-    """Every case of the level ``cfg`` from ``solved`` ({case: (disk, u, record)} of the cases solved) and ``twin``
-    ({case: the case it is solved as}, :func:`twins`): a twin takes its problem's end state :func:`magnified` to its own
-    disk, checked there as a final state (:meth:`Disk.final_check`) and counted there; the record keeps the
-    path's numbers (ε of the first bifurcation, switches, folds, the starts' counts, the carried states, with the
-    energies scaled by s³), its final-state numbers become the twin's own and ``twin_of`` names the problem's
-    case."""
+    """Every case of the level ``cfg`` from ``solved`` ({case: (disk, u, record)} of the cases solved) and
+    ``twin`` ({case: the case it is solved as}, :func:`twins`): a twin takes its problem's end state
+    :func:`magnified` to its own disk, checked there as a final state (:meth:`Disk.final_check`) and counted
+    there. Its record keeps the path's numbers (ε of the first bifurcation, switches, folds, the starts' counts,
+    the carried states, energies scaled by s³ and radii by s); its final-state numbers become its own, and
+    ``twin_of`` names the case solved."""
     out = {}
     for case, rep in twin.items():
         if case == rep:
@@ -1117,8 +1120,8 @@ def with_twins(cfg, solved, twin, log=None):
                    largest_turn=check["largest_turn"], result=bool(check["result"]),
                    candidates=[dict(c, energy=None if c["energy"] is None else c["energy"] * s3)
                                for c in rec_rep["candidates"]],
-                   carried=[dict(c, energy=None if c["energy"] is None else c["energy"] * s3, from_R2=c["from_R2"] * s)
-                            for c in rec_rep.get("carried", [])],
+                   carried=[dict(c, energy=None if c["energy"] is None else c["energy"] * s3,
+                                 from_R2=c["from_R2"] * s) for c in rec_rep.get("carried", [])],
                    counted_from=None if rec_rep.get("counted_from") is None else rec_rep["counted_from"] * s,
                    wall_s=time.perf_counter() - t0)
         if log:
@@ -1175,9 +1178,9 @@ def run(level, out_dir=None, log=None):
                         float(rec["relaxed"]), None, None, nv, wall))
         if rec.get("twin_of"):
             th, tR2 = rec["twin_of"]
-            rows.append(Row(f"solved as h={th:g} R2={tR2:g} magnified by {h / th:g} (the same R2/h, R1/R2 and mesh: its "
-                            "path's rows are that case's, its end state is checked and counted here)" + at, h / th,
-                            None, None, nv, wall))
+            rows.append(Row(f"solved as h={th:g} R2={tR2:g} magnified by {h / th:g} (the same R2/h, R1/R2 and mesh: "
+                            "its path's rows are that case's, its end state is checked and counted here)" + at,
+                            h / th, None, None, nv, wall))
         cands = [c for c in rec["candidates"] if c["push"] is not None]
         if len(cands) > 1:
             ok = [c for c in cands if c["result"]]
