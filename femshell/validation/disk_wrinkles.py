@@ -94,7 +94,8 @@ apiece).
    is carried to the next smaller and the next larger R2 among the cases of its h and resolution: swept in R2
    at ε = 0.5 on its own mesh in steps of ``EXCHANGE_STEP`` · h (:func:`sweep_radius`: a slowly growing or
    shrinking disk, which keeps its n-branch while that is stable), carried to the neighbour's mesh
-   (:meth:`Disk.carried`), relaxed there by stable Newton and checked as above. A case counts the
+   (:meth:`Disk.carried`), relaxed there by stable Newton in bounded steps (``CARRY_MAX_STEP``) and checked as
+   above. A case counts the
    lowest-energy result among its own end state and those carried to it (:func:`with_carried`; its own on a
    tie within ``SAME_STATE_RTOL``), and the rows list them all. It is the R2 sweeps' comparison of the
    n-branches (docs/disk-crosscheck.md) within the level's own cases: a state that the snap at one R2
@@ -107,7 +108,11 @@ apiece).
 
 The full level takes hours: each finished case is checkpointed in ``OUT/disk-wrinkles-checkpoints``, a later
 call reads it back instead of solving again, and the cases are solved in two worker processes at once
-(:func:`solve_cases`); so are the carried states of step 4 (:func:`exchange_states`).
+(:func:`solve_cases`); so are the carried states of step 4 (:func:`exchange_states`). A state read back is
+checked and counted again (:func:`check_saved`: a checkpoint whose state does not give its saved numbers is
+refused), so the rows are this code's own. The case and carried states of the recorded run are kept in
+``validation/results/disk-wrinkles-states``: copied into ``OUT/disk-wrinkles-checkpoints`` they give its rows
+in minutes, and the R2 sweeps and the mesh-refinement ladder (``validation/``) start from them.
 
 Rows: per case the count at ε = 0.5 (the paper's count in the quantity text; no reference,
 no tolerance: the paper is a spring network and our continuum numbers need not agree), the
@@ -541,14 +546,15 @@ def pushed_starts(d, sp, pushes):
     return out[:pushes]
 
 
-def stable_state(problem, u, parameter, max_iter, log=None, newton_log=None, at=None):
-    """Stable Newton (:func:`~femshell.solvers.newton.minimize`, ``stable=True``) from u at ``parameter`` of the
-    parametrised ``problem``: (u, iterations). When Newton fails the last iterate is kept, with iterations None,
-    and a line goes to ``log`` (``at`` names the point, default the parameter): the final check of the state
-    then says whether it is a result. ``newton_log``: Newton's own lines (default none)."""
+def stable_state(problem, u, parameter, max_iter, log=None, newton_log=None, at=None, max_step=None):
+    """Stable Newton (:func:`~femshell.solvers.newton.minimize`, ``stable=True``, steps of at most ``max_step`` in
+    the max-norm) from u at ``parameter`` of the parametrised ``problem``: (u, iterations). When Newton fails the
+    last iterate is kept, with iterations None, and a line goes to ``log`` (``at`` names the point, default the
+    parameter): the final check of the state then says whether it is a result. ``newton_log``: Newton's own
+    lines (default none)."""
     problem.set_parameter(parameter)
     try:
-        fit = minimize(problem, u, stable=True, max_iter=max_iter, log=newton_log)
+        fit = minimize(problem, u, stable=True, max_iter=max_iter, log=newton_log, max_step=max_step)
         return fit.u, fit.iterations
     except NewtonError as exc:
         if log:
@@ -904,6 +910,15 @@ def _in_workers(workers, jobs):
 EXCHANGE_STEP = 0.25
 
 
+#: the carried state's relaxation on the neighbour's mesh takes steps of at most this · h (max-norm: positions,
+#: and the dimensionless edge unknowns). Interpolated onto another mesh of the same density a wrinkled state
+#: gains mesh-scale kinks (14 % more energy at h = 0.25, R2 = 3); full Newton steps from there crossed saddles
+#: of up to 4 negative eigenvalues into a state with a normal turned by 89.8° (not a result, 2026-12-02), where
+#: steps of 0.02 = 0.08 h relax the same start, without a saddle, to the resolved stable state carried (191
+#: iterations, 237 s)
+CARRY_MAX_STEP = 0.08
+
+
 def neighbour_pairs(cases):
     """(source, target) pairs of cases whose end states are exchanged (:func:`carried_to_neighbour`): each case
     and the next larger R2 among the cases of its h and resolution (one mesh density relative to R2), both ways.
@@ -936,7 +951,8 @@ def carried_to_neighbour(d_from, u_from, d_to, log=None, checkpoint=None, meta=N
     """The end state u_from of the case on disk ``d_from`` carried to the neighbouring case's disk ``d_to`` (the
     same h, another R2): swept in R2 at ε = 0.5 on its own mesh (:func:`sweep_radius`, :func:`exchange_radii`),
     so that it follows its n-branch while that is stable as a slowly growing disk would, then carried to d_to's
-    mesh (:meth:`Disk.carried`), relaxed there by stable Newton and checked as a case's final state.
+    mesh (:meth:`Disk.carried`), relaxed there by stable Newton in steps of at most ``CARRY_MAX_STEP`` · h and
+    checked as a case's final state.
 
     Four relaxations from the snap are a sample of the many stable states past it (module docstring, step 3);
     the neighbours' states, carried over, are more of them. Returns (u on d_to, candidate: from_R2, count, rim,
@@ -953,8 +969,8 @@ def carried_to_neighbour(d_from, u_from, d_to, log=None, checkpoint=None, meta=N
     sweep_ck = None if checkpoint is None else checkpoint.with_name("sweep-" + checkpoint.name)
     radii = exchange_radii(d_from.R2, d_to.R2, d_from.h)
     _, states = sweep_radius(d_from, u_from, radii, log=log, checkpoint=sweep_ck, meta=meta)
-    u, _ = stable_state(d_to.problem, d_to.carried(d_from, states[-1]), EPS_END, 400, log,
-                        at=f"eps = {EPS_END:g} (carried from R2 = {d_from.R2:g})")
+    u, _ = stable_state(d_to.problem, d_to.carried(d_from, states[-1]), EPS_END, 600, log,
+                        at=f"eps = {EPS_END:g} (carried from R2 = {d_from.R2:g})", max_step=CARRY_MAX_STEP * d_to.h)
     check = d_to.final_check(u, EPS_END, log=log)
     w = d_to.deflection(u)
     energy = float(d_to.model.energy(u))
@@ -1001,8 +1017,8 @@ def with_carried(u, rec, carried):
 
 def carried_meta(meta_from, meta_to):
     """What a carried state's checkpoint must agree on with the run that reads it back: both cases' metas
-    (:func:`_case_meta`) and the sweep's step."""
-    return {"from": meta_from, "to": meta_to, "step": EXCHANGE_STEP}
+    (:func:`_case_meta`), the sweep's step and the relaxation's step bound."""
+    return {"from": meta_from, "to": meta_to, "step": EXCHANGE_STEP, "max_step": CARRY_MAX_STEP}
 
 
 def _carry_in_worker(meta_from, ck_from, meta_to, checkpoint, echo):
