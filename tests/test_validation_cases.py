@@ -104,6 +104,19 @@ def test_disk_final_state_residual_tells_an_equilibrium_from_a_failed_relaxation
     assert d.relative_residual(info.value.result.u, 0.05) > dw.EQUILIBRIUM_RTOL
 
 
+def test_a_flat_disk_has_no_wrinkles_whatever_its_round_off():
+    """A deflection of round-off size (the flat disk carried back from a dome: |w| ~ 1e-23) counts 0, where the
+    same pattern at 0.1 h counts its waves."""
+    import numpy as np
+
+    from femshell.validation import disk_wrinkles as dw
+
+    d = dw.Disk(2.0, 3.0, 4)
+    x, y = d.points[:, 0], d.points[:, 1]
+    wave = np.cos(3 * np.arctan2(y, x)) * np.exp(-((np.hypot(x, y) - 3.0) / 1.5) ** 2)
+    assert d.count(1e-23 * wave) == 0 and d.count(0.1 * d.h * wave) == 3
+
+
 def test_the_disk_has_no_length_of_its_own():
     """Dimensional analysis: stretching energy ∝ h · area, bending ∝ h³ · curvature² · area, so the disk
     scaled by s with its thickness has Π(s x, s h) = s³ Π(x, h) at the same ε and edge unknowns (gradient
