@@ -422,6 +422,20 @@ class Disk:
                     largest_turn=float(self.model.edge_turning_angles(u).max()),
                     result=n_negative == 0 and residual <= EQUILIBRIUM_RTOL and over_folded == 0)
 
+    def end_state(self, u, log=None):
+        """What the rows say of a state u at ε = 0.5: :meth:`final_check`'s numbers with count, rim
+        (:meth:`rim_mode`) and energy; a state that is not finite has count and energy None, rim (0, nan),
+        residual None and is no result."""
+        check = self.final_check(u, EPS_END, log=log)
+        energy = float(self.model.energy(u))
+        finite = math.isfinite(energy) and math.isfinite(check["residual"]) and bool(np.all(np.isfinite(u)))
+        w = self.deflection(u)
+        rim = self.rim_mode(w) if finite else (0, math.nan)
+        return dict(count=int(self.count(w)) if finite else None, rim=[int(rim[0]), float(rim[1])],
+                    energy=energy if finite else None, n_negative=check["n_negative"],
+                    residual=check["residual"] if finite else None, over_folded=int(check["over_folded"]),
+                    largest_turn=float(check["largest_turn"]), result=bool(finite and check["result"]))
+
     def n_negative(self, u, eps, problem=None):
         """Negative eigenvalues of the constrained Hessian at (u, ε) (inertia of its LDLᵀ); ``problem``: as for
         :meth:`relative_residual`."""
@@ -836,13 +850,12 @@ def check_saved(d, u, saved, negative_key, checkpoint):
     energy (to ``SAVED_ENERGY_RTOL``) differ from the ``saved`` numbers (a record, or a carried candidate whose
     negative eigenvalues are under ``negative_key``). So the rows of a resumed run are this code's own, and a
     checkpoint made by other code is refused rather than reported."""
-    check = d.final_check(u, EPS_END)
-    energy = float(d.model.energy(u))
-    now = dict(count=int(d.count(d.deflection(u))), n_negative=check["n_negative"], result=bool(check["result"]))
+    now = d.end_state(u)
     was = dict(count=saved["count"], n_negative=saved[negative_key], result=bool(saved["result"]))
-    differ = {k: (was[k], now[k]) for k in now if was[k] != now[k]}
-    if saved["energy"] is not None and abs(energy - saved["energy"]) > SAVED_ENERGY_RTOL * abs(saved["energy"]):
-        differ["energy"] = (saved["energy"], energy)
+    differ = {k: (was[k], now[k]) for k in was if was[k] != now[k]}
+    if saved["energy"] is not None and not (now["energy"] is not None and abs(now["energy"] - saved["energy"])
+                                             <= SAVED_ENERGY_RTOL * abs(saved["energy"])):
+        differ["energy"] = (saved["energy"], now["energy"])
     if differ:
         raise ValueError(f"{checkpoint}: its state checked again differs from what it saved (saved, now: {differ}); "
                          "other code made it: remove it to solve the case afresh")
@@ -977,19 +990,12 @@ def carried_to_neighbour(d_from, u_from, d_to, log=None, checkpoint=None, meta=N
     _, states = sweep_radius(d_from, u_from, radii, log=log, checkpoint=sweep_ck, meta=meta)
     u, _ = stable_state(d_to.problem, d_to.carried(d_from, states[-1]), EPS_END, 600, log,
                         at=f"eps = {EPS_END:g} (carried from R2 = {d_from.R2:g})", max_step=CARRY_MAX_STEP * d_to.h)
-    check = d_to.final_check(u, EPS_END, log=log)
-    w = d_to.deflection(u)
-    energy = float(d_to.model.energy(u))
-    finite_state = math.isfinite(energy) and math.isfinite(check["residual"]) and bool(np.all(np.isfinite(u)))
-    rim = d_to.rim_mode(w) if finite_state else (0, math.nan)
-    candidate = dict(from_R2=float(d_from.R2), count=int(d_to.count(w)) if finite_state else None,
-                     rim=[int(rim[0]), float(rim[1])], energy=energy if finite_state else None,
-                     n_negative=check["n_negative"], residual=check["residual"] if finite_state else None,
-                     over_folded=int(check["over_folded"]), largest_turn=float(check["largest_turn"]),
-                     result=bool(finite_state and check["result"]))
+    candidate = dict(from_R2=float(d_from.R2), **d_to.end_state(u, log=log))
+    energy = candidate["energy"]
     log(f"    carried from R2 = {d_from.R2:g} to {d_to.R2:g}: {candidate['count']} wrinkles, energy "
-        f"{energy:.8g}, " + ("a resolved stable equilibrium" if candidate["result"] else "not a result"))
-    if checkpoint is not None and finite_state:
+        + ("not finite" if energy is None else f"{energy:.8g}") + ", "
+        + ("a resolved stable equilibrium" if candidate["result"] else "not a result"))
+    if checkpoint is not None and energy is not None:
         save_checkpoint(checkpoint, {"u": np.asarray(u), "candidate": json.dumps(candidate, allow_nan=False)}, meta)
     return u, candidate
 
@@ -1131,15 +1137,10 @@ def with_twins(cfg, solved, twin, log=None):
         d_rep, u_rep, rec_rep = solved[rep]
         d = _case_disk(_case_meta(*case, cfg))
         u = magnified(d_rep, u_rep, d)
-        check = d.final_check(u, EPS_END, log=log)
-        w = d.deflection(u)
-        rim = d.rim_mode(w)
+        end = d.end_state(u, log=log)
         s = d.h / d_rep.h
         s3 = s ** 3
-        rec = dict(rec_rep, twin_of=[rep[0], rep[1]], count=int(d.count(w)), rim=[int(rim[0]), float(rim[1])],
-                   energy=float(d.model.energy(u)), n_negative_final=check["n_negative"],
-                   residual=check["residual"], over_folded=int(check["over_folded"]),
-                   largest_turn=check["largest_turn"], result=bool(check["result"]),
+        rec = dict(rec_rep, twin_of=[rep[0], rep[1]], n_negative_final=end.pop("n_negative"), **end,
                    candidates=[dict(c, energy=None if c["energy"] is None else c["energy"] * s3)
                                for c in rec_rep["candidates"]],
                    carried=[dict(c, energy=None if c["energy"] is None else c["energy"] * s3,
