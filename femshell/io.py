@@ -1,6 +1,6 @@
 """Results on disk: atomic files, ParaView time series, checkpoints, summary.json.
 
-No physics and no plotting here (design.md section 2: data flows one way into io/viz).
+No physics and no plotting here: data flows one way, from the solvers into io and viz.
 
 Every file is written **atomically**: the content goes to a temporary file in
 the same directory (same file system), is flushed to disk, and then replaces
@@ -15,7 +15,7 @@ when the writer fails.
 refuse non-finite numbers with a ValueError that names the offending key or
 field, e.g. ``summary.json: rows[3].value is NaN``.
 
-Time series (design.md section 4, "a time series readable by ParaView"): one
+Time series readable by ParaView: one
 VTU file per frame, ``<name>_000042.vtu`` (meshio, binary, zlib), and a PVD
 collection ``<name>.pvd`` listing ``(time, file)``; open the .pvd in ParaView.
 Times are written with Python's shortest round-trip ``repr``, so the time read
