@@ -13,7 +13,7 @@ of the shell grown by s(c):
 2. step control: Δs = max over elements |s(c⁺) − s(c)|; if Δs > ``ds_max`` the step
    is cut and redone (the mechanics has not been touched yet, so this is cheap);
 3. growth: ā = s² ā0, b̄ = s² b̄0, h̄ = h0/s² (or h0) with s = s(c⁺) per element
-   (:class:`GrowthCoupling`), and ``ShellModel.set_rest_state`` (cached pattern);
+   (:class:`~femshell.growth.GrowthRestState`), and ``ShellModel.set_rest_state`` (cached pattern);
 4. mechanics: :func:`~femshell.solvers.newton.minimize` with ``stable=True`` warm
    started from u (or from the secant prediction u + (dt/dt_prev)(u − u_prev) when
    that has lower energy): a local minimum, never a saddle. A Newton failure cuts dt
@@ -107,17 +107,16 @@ from ._checks import finite as _finite, finite_vector, integer as _integer
 from ._interrupts import committing, step_scope
 from .chemistry import ReactionDiffusion, curvature_source
 from .geometry import element_to_vertex, mean_curvature
-from .growth import THICKNESS_MODES, contractility, element_average, stretch, target_metric, target_thickness
+from .growth import REST_CURVATURES, THICKNESS_MODES, GrowthRestState, contractility, stretch
 from .shell import Material, RestState, ShellModel
 from .shell.model import FOLD_LIMIT_DEG
 from .solvers.linear import BACKENDS, LinearSolverError, Refactorizer
 from .solvers.newton import NewtonError, minimize
 
-__all__ = ["MechanochemicalModel", "GrowthCoupling", "InitialSpot", "gaussian_spot", "TimeStepping",
+__all__ = ["MechanochemicalModel", "GrowthRestState", "InitialSpot", "gaussian_spot", "TimeStepping",
            "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "REST_CURVATURES", "feedback_gain",
            "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES"]
 
-REST_CURVATURES = ("mesh", "k0")
 #: 2: edge unknowns are tangents of the mid-edge normals' turning angles (1: the angles)
 STATE_VERSION = 2
 
@@ -257,62 +256,6 @@ class MechanochemicalModel:
 
 
 # ----------------------------------------------------------------------------- growth
-
-class GrowthCoupling:
-    """From the concentration to the rest state of the shell, and from the shape to H.
-
-    c (vertex) -> element mean -> s(c) -> RestState(ā = s² ā0, b̄ = s² b̄0, h̄(s)) ->
-    ``model.set_rest_state``. ā0 and b̄0 are read from ``model`` at its initial
-    unknowns (the drawn mesh at zero edge angles); b̄0 = b_mesh with
-    ``rest_curvature="mesh"``, k0 ā0 with ``"k0"`` (module docstring).
-
-    Attributes
-    ----------
-    a0, b0 : (m, 2, 2) rest metric (length²) and rest curvature (length) at s = 1.
-    k_ref : (m,) the per-element reference of H (1/length): ½ tr(ā0⁻¹ b_mesh) or k0.
-    """
-
-    def __init__(self, model: ShellModel, params: MechanochemicalModel):
-        self.model = model
-        self.params = params
-        self.triangles = np.asarray(model.mesh.triangles)
-        a0, b_mesh = model.fundamental_forms(model.initial_unknowns())
-        self.a0 = np.array(a0, dtype=float)
-        self.b_mesh = np.array(b_mesh, dtype=float)
-        if params.rest_curvature == "mesh":
-            self.b0 = self.b_mesh
-            self.k_ref = mean_curvature(self.a0, self.b_mesh, 0.0)
-        else:
-            k0 = params.natural_curvature
-            self.b0 = k0 * self.a0
-            self.k_ref = np.full(len(self.a0), k0)
-
-    def stretch(self, c_vertices) -> np.ndarray:
-        """s per element from the vertex concentrations (element mean of c, then s(c))."""
-        c = np.asarray(c_vertices)
-        n = self.model.mesh.n_vertices
-        if c.shape != (n,):
-            raise ValueError(f"c must have one value per vertex, shape ({n},), got {c.shape}")
-        return self.params.stretch(element_average(c, self.triangles))
-
-    def rest_state(self, s) -> RestState:
-        """The grown targets for the element stretches ``s`` (m,)."""
-        s = np.asarray(s, dtype=float)
-        s2 = (s * s)[:, None, None]
-        return RestState(target_metric(self.a0, s), s2 * self.b0,
-                         target_thickness(self.params.h0, s, self.params.thickness_mode))
-
-    def apply(self, s):
-        """``model.set_rest_state(rest_state(s))``."""
-        self.model.set_rest_state(self.rest_state(s))
-
-    def mean_curvature(self, u):
-        """H per element and per vertex (1/length) of the state ``u`` (module docstring)."""
-        a, b = self.model.fundamental_forms(u)
-        H = mean_curvature(np.asarray(a), np.asarray(b), self.k_ref)
-        Hv = element_to_vertex(H, self.model.positions(u), self.triangles)
-        return H, Hv
-
 
 # ----------------------------------------------------------------------------- initial condition
 
@@ -733,7 +676,7 @@ class CoupledLoop:
     ----------
     t, dt, step, c, u : the current state (dt is the proposal for the next step).
     s : (m,) element stretches of c; H, H_vertex : H per element / vertex (1/length).
-    shell : ShellModel; growth : GrowthCoupling; chemistry : ReactionDiffusion.
+    shell : ShellModel; growth : GrowthRestState; chemistry : ReactionDiffusion.
     """
 
     def __init__(self, mesh, params: MechanochemicalModel, stepping: TimeStepping | None = None, c0=None,
@@ -749,13 +692,14 @@ class CoupledLoop:
         self.stepping = stepping or TimeStepping()
         self.log = log
         n = mesh.n_vertices
-        # the rest state at s = 1 is replaced by GrowthCoupling right away
+        # the rest state at s = 1 is replaced by GrowthRestState right away
         from .shell.rest_state import metric
 
         a0 = metric(np.asarray(mesh.points, float), np.asarray(mesh.triangles))
         self.shell = ShellModel(mesh, params.material,
                                 RestState(a0, params.natural_curvature * a0, params.h0), boundary_conditions)
-        self.growth = GrowthCoupling(self.shell, params)
+        self.growth = GrowthRestState(self.shell, params.h0, params.thickness_mode, params.rest_curvature,
+                                      params.natural_curvature, params.stretch)
         self.chemistry = ReactionDiffusion(mesh.triangles, n, D=params.D, beta=params.beta, points=mesh.points)
         self._length = float(params.h0)
         self._atol = self._residual_floor()

@@ -29,11 +29,13 @@ import numpy as np
 from scipy.special import expit
 
 from ._checks import real_array, triangle_array, vertex_indices
+from .geometry import element_to_vertex, mean_curvature
 
 __all__ = ["contractility", "stretch", "dstretch_dc", "element_average", "target_metric",
-           "target_thickness", "target_curvature", "THICKNESS_MODES"]
+           "target_thickness", "target_curvature", "GrowthRestState", "THICKNESS_MODES", "REST_CURVATURES"]
 
 THICKNESS_MODES = ("volume", "uniform")
+REST_CURVATURES = ("mesh", "k0")
 
 
 def _check_params(lam_max, lam_min, b, c_star):
@@ -267,3 +269,72 @@ def _check_stretch(s, m):
     if np.any((s < 1e-100) | (s > 1e100)):   # s² and h/s² stay representable
         raise ValueError(f"stretch s must be in [1e-100, 1e100], got {s.min():.3g} to {s.max():.3g}")
     return np.broadcast_to(s, (m,)) if (s.ndim == 0 and m is not None) else s
+
+
+class GrowthRestState:
+    r"""The rest state of a growing shell and the mean curvature H measured from it (theory §1.1, §1.3).
+
+    Element stretches s -> RestState(ā = s² ā0, b̄ = s² b̄0, h̄(s)) -> ``model.set_rest_state``,
+    and a shape u -> H = ½ tr(a⁻¹ b) − k_ref per element and per vertex. ā0 and b_mesh are the
+    fundamental forms of ``model`` at its initial unknowns (the drawn mesh at zero edge angles).
+
+    ``rest_curvature="mesh"``: b̄0 = b_mesh and k_ref = ½ tr(ā0⁻¹ b_mesh), so the drawn mesh is
+    exactly stress free at s = 1 and has H = 0; ``"k0"``: b̄0 = k0 ā0 and k_ref = k0.
+    ``stretch_law`` maps concentrations to stretches (s(c), e.g. :func:`stretch`); it is needed
+    only by :meth:`stretch`.
+
+    Attributes
+    ----------
+    a0, b0 : (m, 2, 2) rest metric (length²) and rest curvature (length) at s = 1.
+    b_mesh : (m, 2, 2) the drawn mesh's second fundamental form (length).
+    k_ref : (m,) the per-element reference of H (1/length).
+    """
+
+    def __init__(self, model, h0: float, thickness_mode: str = "volume", rest_curvature: str = "mesh",
+                 k0: float = 0.0, stretch_law=None):
+        if thickness_mode not in THICKNESS_MODES:
+            raise ValueError(f"thickness mode must be one of {THICKNESS_MODES}, got {thickness_mode!r}")
+        if rest_curvature not in REST_CURVATURES:
+            raise ValueError(f"rest_curvature must be one of {REST_CURVATURES}, got {rest_curvature!r}")
+        self.model = model
+        self.h0 = h0
+        self.thickness_mode = thickness_mode
+        self.stretch_law = stretch_law
+        self.triangles = np.asarray(model.mesh.triangles)
+        a0, b_mesh = model.fundamental_forms(model.initial_unknowns())
+        self.a0 = np.array(a0, dtype=float)
+        self.b_mesh = np.array(b_mesh, dtype=float)
+        if rest_curvature == "mesh":
+            self.b0 = self.b_mesh
+            self.k_ref = mean_curvature(self.a0, self.b_mesh, 0.0)
+        else:
+            self.b0 = float(k0) * self.a0
+            self.k_ref = np.full(len(self.a0), float(k0))
+
+    def stretch(self, c_vertices) -> np.ndarray:
+        """s per element from the vertex concentrations: the element mean of c, then the stretch law."""
+        if self.stretch_law is None:
+            raise ValueError("this growth has no stretch law s(c): give stretch_law to map concentrations")
+        c = np.asarray(c_vertices)
+        n = self.model.mesh.n_vertices
+        if c.shape != (n,):
+            raise ValueError(f"c must have one value per vertex, shape ({n},), got {c.shape}")
+        return self.stretch_law(element_average(c, self.triangles))
+
+    def rest_state(self, s):
+        """The grown targets (a :class:`~femshell.shell.RestState`) for the element stretches ``s`` (m,)."""
+        from .shell import RestState        # deferred: femshell.shell loads jax, the functions above do not
+
+        s = np.asarray(s, dtype=float)
+        s2 = (s * s)[:, None, None]
+        return RestState(target_metric(self.a0, s), s2 * self.b0, target_thickness(self.h0, s, self.thickness_mode))
+
+    def apply(self, s):
+        """``model.set_rest_state(rest_state(s))``."""
+        self.model.set_rest_state(self.rest_state(s))
+
+    def mean_curvature(self, u):
+        """H per element and per vertex (1/length) of the state ``u``, measured from k_ref."""
+        a, b = self.model.fundamental_forms(u)
+        H = mean_curvature(np.asarray(a), np.asarray(b), self.k_ref)
+        return H, element_to_vertex(H, self.model.positions(u), self.triangles)

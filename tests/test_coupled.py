@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, minimize_scalar
 
-from femshell.coupled import (CoupledError, CoupledLoop, GrowthCoupling, InitialSpot, MechanochemicalModel,
+from femshell.coupled import (CoupledError, CoupledLoop, GrowthRestState, InitialSpot, MechanochemicalModel,
                               TimeStepping, feedback_gain, feedback_step_limit, gaussian_spot,
                               stable_extrapolation)
 from femshell.io import load_checkpoint, save_checkpoint
@@ -101,13 +101,13 @@ def test_gaussian_spot(ball):
     assert np.array_equal(gaussian_spot(ball.points, 0.5, 1e200), np.full(ball.n_vertices, 0.5))
 
 
-def test_growth_coupling_targets(ball):
+def test_growth_rest_state_targets(ball):
     from femshell.shell import Material, RestState, ShellModel, metric
 
     a0 = metric(ball.points, ball.triangles)
     model = ShellModel(ball, Material(1, 0.5), RestState(a0, a0 / R, H0))
     for mode in ("volume", "uniform"):
-        g = GrowthCoupling(model, MechanochemicalModel(h0=H0, radius=R, thickness_mode=mode))
+        g = GrowthRestState(model, H0, mode, stretch_law=MechanochemicalModel(h0=H0, radius=R).stretch)
         s = np.linspace(1.0, 1.5, ball.n_triangles)
         rest = g.rest_state(s)
         assert np.allclose(rest.metric, s[:, None, None] ** 2 * a0, rtol=1e-12)

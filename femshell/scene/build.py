@@ -271,12 +271,13 @@ def stretch_field(growth: dict, mesh, strain=None, inner_radius=None) -> np.ndar
 class ShellParts:
     """The mechanics of a static or continuation scene.
 
-    ``model`` (ShellModel with conditions and loads), ``a0``, ``b0`` (rest forms at s = 1),
-    ``k_ref`` (per-element reference of H), ``rest_for(s)`` -> RestState, ``apply(s)``.
+    ``model`` (ShellModel with conditions and loads), ``growth`` (its
+    :class:`~femshell.growth.GrowthRestState`), ``rest_for(s)`` -> RestState, ``apply(s)`` (kept in ``s``),
+    ``mean_curvature(u)`` -> H per element and per vertex.
     """
 
     def __init__(self, scene: Scene, mesh):
-        from ..geometry import mean_curvature
+        from ..growth import GrowthRestState
         from ..shell import Material, ShellModel, flat_rest_state
 
         self.scene = scene
@@ -295,35 +296,16 @@ class ShellParts:
                                     self.loads)
         except ValueError as exc:
             raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
-        a0, b_mesh = self.model.fundamental_forms(self.model.initial_unknowns())
-        self.a0 = np.array(a0, dtype=float)
         k0 = sh["natural_curvature"]
-        if k0 == "mesh":
-            self.b0 = np.array(b_mesh, dtype=float)
-            self.k_ref = mean_curvature(self.a0, self.b0, 0.0)
-        else:
-            self.b0 = float(k0) * self.a0
-            self.k_ref = np.full(len(self.a0), float(k0))
+        self.growth = GrowthRestState(self.model, self.h0, self.mode, "mesh" if k0 == "mesh" else "k0",
+                                      0.0 if k0 == "mesh" else float(k0))
+        self.rest_for = self.growth.rest_state
+        self.mean_curvature = self.growth.mean_curvature
         self.s = np.ones(mesh.n_triangles)
-
-    def rest_for(self, s):
-        from ..growth import target_thickness
-        from ..shell import RestState
-
-        s = np.asarray(s, dtype=float)
-        s2 = (s * s)[:, None, None]
-        return RestState(s2 * self.a0, s2 * self.b0, target_thickness(self.h0, s, self.mode))
 
     def apply(self, s):
         self.s = np.asarray(s, dtype=float)
-        self.model.set_rest_state(self.rest_for(self.s))
-
-    def mean_curvature(self, u):
-        from ..geometry import element_to_vertex, mean_curvature
-
-        a, b = self.model.fundamental_forms(u)
-        H = mean_curvature(np.asarray(a), np.asarray(b), self.k_ref)
-        return H, element_to_vertex(H, self.model.positions(u), self.mesh.triangles)
+        self.growth.apply(self.s)
 
 
 def shell_parts(scene: Scene, mesh) -> ShellParts:

@@ -7,13 +7,13 @@ h = 2 volume-conserving, c* = 0.1, D = 0, Λmax/Λmin = 15/10, b = 100, w = 15, 
 -> ``make_mesh`` -> ``time_loop`` (a ``femshell.coupled.CoupledLoop``) -> ``loop.run``.
 Nothing of the loop is reimplemented here; its pieces are wrapped with timers:
 
-* growth: ``GrowthCoupling.stretch`` + ``apply`` (s(c), rest state, ``set_rest_state``);
+* growth: ``GrowthRestState.stretch`` + ``apply`` (s(c), rest state, ``set_rest_state``);
 * predictor: the secant predictor (two energy evaluations);
 * Newton (``minimize(stable=True)``), split into Hessian assembly, energy + gradient at
   the start, LDLᵀ factorisation (numerical refactorisation; gives the inertia, i.e. the
   stability check), back-substitution, line search, saddle escapes (eigenvector of the
   most negative eigenvalue + trial energies; the rest of the stability check);
-* curvature H (``GrowthCoupling.mean_curvature``) and the strain energy of the new state;
+* curvature H (``GrowthRestState.mean_curvature``) and the strain energy of the new state;
 * chemistry (``ReactionDiffusion.step``; D = 0: the exact exponential update);
 * record: the step record (``count_spots``), the stationarity measures, the rest.
 
