@@ -201,6 +201,7 @@ def test_contradictory_or_malformed_boundary_conditions(small_disk):
 
 
 def test_model_lists_and_branch_csv_path(small_disk, tmp_path):
+    from femshell.io import write_branch_csv
     from femshell.solvers.continuation import LoadParameter, continuation
     from femshell.shell import DeadPressure
 
@@ -214,7 +215,7 @@ def test_model_lists_and_branch_csv_path(small_disk, tmp_path):
     b = continuation(LoadParameter(model), model.initial_unknowns(), 0.0, ds=0.5, max_steps=1, n_eigs=0,
                      detect=False, log=None)
     with pytest.raises(ValueError, match="is a directory"):
-        b.to_csv(tmp_path)
+        write_branch_csv(b, tmp_path)
 
 
 def test_growth_numbers(small_disk):

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from femshell.solvers.continuation import (Branch, ContinuationError, GrowthParameter, LoadParameter, _Engine,
-                                           continuation, switch_branch)
+from femshell.io import write_branch_csv, write_special_points
+from femshell.solvers.continuation import (Branch, ContinuationError, GrowthParameter, LoadParameter, continuation,
+                                           switch_branch)
+from femshell.solvers.corrector import _Engine
 
 
 # ----------------------------------------------------------------------------- analytic problems
@@ -378,7 +380,7 @@ def test_csv_special_points_and_table(tmp_path):
     b = continuation(Pitchfork(), np.zeros(2), 0.0, ds=0.3, lam_stop=1.5, record=lambda u: {"y": u[1]},
                      label="trivial", log=None)
     assert isinstance(b, Branch)
-    path = b.to_csv(tmp_path / "out" / "branch.csv")
+    path = write_branch_csv(b, tmp_path / "out" / "branch.csv")
     with open(path) as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == len(b.rows)
@@ -395,7 +397,7 @@ def test_csv_special_points_and_table(tmp_path):
         calls.append((stem, u.copy(), {k: v.copy() for k, v in modes.items()}))
         return str(stem) + ".fake"
 
-    out = b.save_special_points(tmp_path / "sp", writer)
+    out = write_special_points(b, tmp_path / "sp", writer)
     assert out == [calls[0][0].as_posix() + ".fake"]
     assert list(calls[0][2]) == ["mode_0"]
     meta = json.loads((tmp_path / "sp" / "trivial-special-points.json").read_text())

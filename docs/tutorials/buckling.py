@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from femshell.io import write_branch_csv
 from femshell.mesh.generators import disk
 from femshell.mesh.io import write_mesh
 from femshell.shell import Clamped, Material, ShellModel, uniform_growth
@@ -96,8 +97,8 @@ rows += [{"x": r["parameter"] / eps_c, "y": r["w_centre"] / t, "stable": r["stab
           "special": r["special"]} for r in buckled.rows]
 bifurcation_diagram(rows, x="x", y="y", path=out / "bifurcation.png", xlabel="growth strain g / eps_c (theory)",
                     ylabel="centre deflection w0 / t", title="clamped disk, uniform growth")
-flat.to_csv(out / "flat.csv")
-buckled.to_csv(out / "buckled.csv")
+write_branch_csv(flat, out / "flat.csv")
+write_branch_csv(buckled, out / "buckled.csv")
 
 # %% [results]
 results = {"edge_length": h, "n_vertices": mesh.n_vertices, "eps_c_theory": eps_c, "g_c": g_c,

@@ -95,7 +95,7 @@ def azimuthal_wavenumber(points, modes_z, n_max=12, r_min=0.15):
 
 
 def shell_mesh_writer(model, fmt="vtu"):
-    """A ``mesh_writer`` for :meth:`Branch.save_special_points`: the reference mesh with point data
+    """A ``mesh_writer`` for :func:`femshell.io.write_special_points`: the reference mesh with point data
     ``displacement`` (the state) and ``mode_j`` (the displacement part of each critical mode)."""
     from ..mesh.io import write_mesh
 
