@@ -100,6 +100,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ._checks import integer
+from .solvers.linear import available_backends, factorize
 
 __all__ = ["membrane_prestress", "buckling_loads", "BucklingResult", "azimuthal_wavenumber",
            "mode_wavenumber", "critical_growth_strain", "CriticalGrowth", "critical_inner_radius",
@@ -212,24 +213,8 @@ class _InverseOperator:
                            options={"SymmetricMode": True})
             self._solve = lu.solve
         elif solver == "pardiso":
-            ps = _pardiso_instance()
-            Ku = sp.triu(K, format="csr")
-            Ku.sort_indices()
-            ps.factorize(Ku)
-            _PARDISO_OWNER[:] = [self]
-            self._Ku = Ku
-
-            def solve(b):
-                if _PARDISO_OWNER[0] is not self:   # the shared solver was refactorised meanwhile
-                    ps.factorize(Ku)
-                    _PARDISO_OWNER[:] = [self]
-                # phase 33 (solve only) on the stored factors; pypardiso's public solve()
-                # re-hashes the whole matrix on every call to decide that, which costs more
-                # than the triangular solves at these sizes
-                ps.set_phase(33)
-                return ps._call_pardiso(Ku, np.ascontiguousarray(b))
-
-            self._solve = solve
+            self._fac = factorize(K, kind="spd", backend="pardiso")
+            self._solve = self._fac.solve
         elif solver == "pyamg":
             import pyamg
 
@@ -264,29 +249,6 @@ class _InverseOperator:
     def operator(self):
         n = self.K.shape[0]
         return spla.LinearOperator((n, n), matvec=self, dtype=float)
-
-
-_PARDISO = []
-_PARDISO_OWNER = [None]
-
-
-def _pardiso_instance():
-    """One shared PyPardisoSolver (its constructor globs site-packages for MKL: 1-2 s each time)."""
-    import pypardiso
-
-    if not _PARDISO:
-        ps = pypardiso.PyPardisoSolver(mtype=2)  # real SPD; PARDISO reads the upper triangle
-        ps.set_statistical_info_off()
-        _PARDISO.append(ps)
-    return _PARDISO[0]
-
-
-def _have_pardiso():
-    try:
-        import pypardiso  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 # ----------------------------------------------------------------------------- prestress
@@ -384,7 +346,7 @@ def membrane_prestress(points2d, triangles, growth_strain, E=1.0, nu=0.3, thickn
     free = basis.complement_dofs(fixed)
     u = np.zeros(K.shape[0])
     if solver == "auto":
-        solver = "pardiso" if len(free) > 50_000 and _have_pardiso() else "splu"
+        solver = "pardiso" if len(free) > 50_000 and "pardiso" in available_backends() else "splu"
     u[free] = _InverseOperator(K[free][:, free], solver)(f[free])
 
     N = _membrane_forces(basis, u, t, Ee, g, nu)

@@ -7,6 +7,7 @@ import pytest
 
 from femshell import linear_buckling as lb
 from femshell.mesh import generators
+from femshell.solvers.linear import available_backends
 
 NU = 0.3
 
@@ -173,3 +174,16 @@ def test_round_off_compression_and_a_support_on_one_line_are_named():
     # clamped along that edge (a cantilever plate) is well posed
     ok = lb.buckling_loads(p, t, (0.0, -1.0, 0.0), nu=NU, D=1.0, bc="clamped", supported_vertices=left, k=1)
     assert len(ok.mu) == 1 and ok.mu[0] > 1.0
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pardiso unavailable")
+def test_pardiso_inner_solver_agrees_with_superlu(disk):
+    # the PARDISO inner solves go through femshell.solvers.linear's factorisation, as every other one
+    p, t = disk
+    N = lb.membrane_prestress(p, t, 1e-4, nu=NU, thickness=0.02, boundary="clamped", solver="splu")
+    Np = lb.membrane_prestress(p, t, 1e-4, nu=NU, thickness=0.02, boundary="clamped", solver="pardiso")
+    np.testing.assert_allclose(Np, N, rtol=1e-8, atol=1e-12 * np.abs(N).max())
+    a = lb.buckling_loads(p, t, N, nu=NU, thickness=0.02, bc="clamped", k=3, solver="splu")
+    b = lb.buckling_loads(p, t, N, nu=NU, thickness=0.02, bc="clamped", k=3, solver="pardiso")
+    np.testing.assert_allclose(b.mu, a.mu, rtol=1e-8)
+    assert b.info["solver"] == "pardiso" and b.info["inner_solves"] > 0

@@ -194,16 +194,17 @@ def test_threaded_pardiso_refactorises_after_solves():
     assert all(float(res) < 1e-10 for _, res in rows)
 
 
-def _variable_after_import(module, name, env_changes):
-    """The environment variable ``name`` in a child process after ``import module``, with the parent's
-    environment minus the variables in ``env_changes``, then those of them that are not None."""
+def _variable_after_import(module, name, env_changes, then=""):
+    """The environment variable ``name`` in a child process after ``import module`` and the statement
+    ``then``, with the parent's environment minus the variables in ``env_changes``, then those of them
+    that are not None."""
     import os
     import subprocess
     import sys
 
     env = {k: v for k, v in os.environ.items() if k not in env_changes}
     env.update({k: v for k, v in env_changes.items() if v is not None})
-    code = f"import os, {module}, numpy; print(os.environ.get({name!r}))"
+    code = f"import os, {module}, numpy; {then or 'pass'}; print(os.environ.get({name!r}))"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     return out.stdout.strip()
@@ -212,9 +213,13 @@ def _variable_after_import(module, name, env_changes):
 @pytest.mark.parametrize("layer, cbwr", [(None, "AUTO,STRICT"), ("SEQUENTIAL", "AUTO,STRICT"), ("GNU", None)])
 def test_strict_reproducibility_only_on_the_sequential_layer(layer, cbwr):
     # MKL's strict reproducibility mode serves bit-for-bit resumes, which only the sequential
-    # layer gives; on a threaded one it would only slow PARDISO down (solves 2.5x at 25k vertices)
-    got = _variable_after_import("femshell.solvers.linear", "MKL_CBWR",
-                                 {"MKL_CBWR": None, "MKL_THREADING_LAYER": layer})
+    # layer gives; on a threaded one it would only slow PARDISO down (solves 2.5x at 25k vertices).
+    # It is chosen when MKL is first loaded, not when the module is imported.
+    env = {"MKL_CBWR": None, "MKL_THREADING_LAYER": layer}
+    assert _variable_after_import("femshell.solvers.linear", "MKL_CBWR", env) == "None"
+    assert _variable_after_import("femshell.solvers.linear", "MKL_THREADING_LAYER", env) == str(layer)
+    got = _variable_after_import("femshell.solvers.linear", "MKL_CBWR", env,
+                                 then="femshell.solvers.linear.available_backends()")
     assert got == str(cbwr)
 
 

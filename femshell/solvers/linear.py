@@ -8,8 +8,7 @@ a stable one when the Hessian has no negative eigenvalue — and can be refactor
 with new values on the same sparsity pattern reusing the symbolic analysis (Newton
 iterations change the values of the Hessian, never its pattern).
 
-Back-ends (measurements in ``validation/benchmarks/linear_solvers.py`` and
-shared/notes/measured-solvers.md):
+Back-ends (measurements in ``validation/benchmarks/linear_solvers.py``):
 
 ``"pardiso"``
     MKL PARDISO through pypardiso, on the upper triangle of K (explicit zero
@@ -70,21 +69,6 @@ import time
 import warnings
 import weakref
 
-# Bit-for-bit repeatable runs (a run resumed from a checkpoint must equal the uninterrupted
-# one): the same PARDISO factorisation differed in the last bits between processes (measured:
-# after another factorisation, or after JAX had run first) because (1) MKL picks SIMD code
-# paths by the memory alignment of its inputs and (2) its OpenMP layer behaves differently
-# with the process's history even at one thread. Strict conditional numerical reproducibility
-# and the sequential threading layer remove both. Must be set before MKL is loaded; set either
-# variable in the environment to override: MKL_THREADING_LAYER=GNU factorises the large
-# Hessians on all cores and gives up bit-for-bit resumes, and with them the reason for strict
-# reproducibility, which is then left off: it slows PARDISO down (measured on a 25k-vertex
-# sphere's Hessian, 150k unknowns, 2 idle cores: Cholesky 1.55 → 1.9 s and a solve 0.06 →
-# 0.15 s on two threads; 1.8 → 3.4 s and 0.10 → 0.125 s on the sequential layer).
-os.environ.setdefault("MKL_THREADING_LAYER", "SEQUENTIAL")
-if os.environ["MKL_THREADING_LAYER"].strip().upper() == "SEQUENTIAL":
-    os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
-
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -112,7 +96,7 @@ PARDISO_PERTURBATION_EXPONENT = 13
 PROBE_TOL = 1e-8
 #: PARDISO runs single-threaded below this many stored (upper-triangle) non-zeros and
 #: with all of MKL's threads above (only with a threaded MKL layer: femshell selects the
-#: sequential one unless MKL_THREADING_LAYER is set, see above). Measured on 2 cores shared
+#: sequential one unless MKL_THREADING_LAYER is set, see _mkl_environment). Measured on 2 cores shared
 #: with other jobs (load 8–10): one thread was faster for factorisations up to 10k vertices
 #: of a shell-like matrix (1.5 vs 1.8 s), and a chemistry-sized matrix (25k unknowns, 1-ring)
 #: took 0.2–0.4 s for factorise + refactorise + 10 solves on one thread against 1.5–1.9 s on
@@ -135,12 +119,28 @@ class LinearSolverError(RuntimeError):
 _PARDISO_STATE = {"checked": False, "ok": False, "why": "", "template": None}
 
 
+def _mkl_environment():
+    """MKL's threading layer for bit-for-bit repeatable runs, chosen just before MKL is first loaded.
+
+    Unless the environment names one, the sequential layer with strict conditional numerical
+    reproducibility (``MKL_CBWR=AUTO,STRICT``): a resumed run must equal the uninterrupted one,
+    and the same PARDISO factorisation otherwise differs in the last bits between processes.
+    ``MKL_THREADING_LAYER=GNU`` factorises large Hessians on all cores and gives up bit-for-bit
+    resumes (strict reproducibility is then left off: it only slows PARDISO down).
+    """
+    os.environ.setdefault("MKL_THREADING_LAYER", "SEQUENTIAL")
+    if os.environ["MKL_THREADING_LAYER"].strip().upper() == "SEQUENTIAL":
+        os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
+
+
 def _pardiso_available() -> bool:
+    """Whether pypardiso finds MKL; the first call loads it (after :func:`_mkl_environment`)."""
     st = _PARDISO_STATE
     if not st["checked"]:
         st["checked"] = True
+        _mkl_environment()
         try:
-            import pypardiso
+            import pypardiso   # deferred: loading MKL reads the environment set just above
 
             st["template"] = pypardiso.PyPardisoSolver()   # loads mkl_rt: fails if MKL is missing
             st["ok"] = True
