@@ -1,4 +1,5 @@
-"""The ``femshell`` command line (contract: design.md section 4)."""
+"""The ``femshell`` command line: ``mesh``, ``validate``, ``run``, ``scenes``, ``render``; exit code 0 done,
+1 failed, 2 bad input (one clear line per problem, no traceback), 130 interrupted."""
 
 from __future__ import annotations
 
@@ -33,19 +34,7 @@ def _positive(name):
     return parse
 
 
-def _parser():
-    p = argparse.ArgumentParser(
-        prog="femshell",
-        description="Finite-element thin shells that grow, buckle and wrinkle under a chemical signal "
-                    "(Zakharov & Dasbiswas model). Subcommands:\n"
-                    "  mesh      generate a mesh (sphere, disk, plate, strip, annulus, cylinder, hemisphere)\n"
-                    "  validate  run a validation case against theory or a benchmark\n"
-                    "  run       run a scene (a .toml file or an embedded scene name)\n"
-                    "  scenes    list the embedded scenes\n"
-                    "  render    pictures and a movie of a finished run",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
-
+def _mesh_parser(sub):
     m = sub.add_parser("mesh", help="generate a mesh with gmsh and write it (.vtu, .msh, .xdmf)",
                        description="Generate a mesh and write it; prints its size, topology and quality.")
     m.add_argument("kind", choices=MESH_KINDS)
@@ -69,13 +58,8 @@ def _parser():
                    help="disk: the inner edge length over the whole inner disk, not only near the circle")
     m.add_argument("--seed", type=int, default=0)
 
-    v = sub.add_parser("validate", help="run validation cases; exit 0 only if every toleranced row passes",
-                       description="Compare femshell with theory and benchmarks; writes OUT/NAME.json and NAME.png.")
-    v.add_argument("name", nargs="*", help="case names (see --list); 'all' runs every case")
-    v.add_argument("--list", action="store_true", help="list the validation cases")
-    v.add_argument("--level", choices=("quick", "full"), default="quick")
-    v.add_argument("--out", default="validation-out", help="output directory (default: validation-out)")
 
+def _run_parser(sub):
     r = sub.add_parser(
         "run", help="run a scene (TOML file or embedded scene name)",
         description="Run a scene; writes into --out a ParaView time series (series.pvd + VTU frames), "
@@ -107,6 +91,31 @@ def _parser():
     r.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     r.add_argument("-v", "--verbose", action="store_true", help="also print step cuts and solver details")
 
+
+def _parser():
+    p = argparse.ArgumentParser(
+        prog="femshell",
+        description="Finite-element thin shells that grow, buckle and wrinkle under a chemical signal "
+                    "(Zakharov & Dasbiswas model). Subcommands:\n"
+                    "  mesh      generate a mesh (sphere, disk, plate, strip, annulus, cylinder, hemisphere)\n"
+                    "  validate  run a validation case against theory or a benchmark\n"
+                    "  run       run a scene (a .toml file or an embedded scene name)\n"
+                    "  scenes    list the embedded scenes\n"
+                    "  render    pictures and a movie of a finished run",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    _mesh_parser(sub)
+
+    v = sub.add_parser("validate", help="run validation cases; exit 0 only if every toleranced row passes",
+                       description="Compare femshell with theory and benchmarks; writes OUT/NAME.json and NAME.png.")
+    v.add_argument("name", nargs="*", help="case names (see --list); 'all' runs every case")
+    v.add_argument("--list", action="store_true", help="list the validation cases")
+    v.add_argument("--level", choices=("quick", "full"), default="quick")
+    v.add_argument("--out", default="validation-out", help="output directory (default: validation-out)")
+
+    _run_parser(sub)
+
     sc = sub.add_parser("scenes", help="list the embedded scenes, one line each; `scenes NAME` prints one",
                         description="List the embedded scenes; with a NAME, print that scene's TOML file "
                                     "(a starting point for your own: femshell scenes default > my.toml).")
@@ -129,6 +138,8 @@ def _parser():
 def _cmd_mesh(args):
     import math
 
+    # each command imports what it uses when it runs: gmsh, jax, pyvista and matplotlib stay out of
+    # `femshell --help` and of the other commands
     from .mesh import check_mesh, format_quality, generators, quality_report, write_mesh
 
     out = Path(args.output)
@@ -193,7 +204,7 @@ def _cmd_mesh(args):
 
 
 def _cmd_validate(args):
-    from .validation import list_cases, run_case
+    from .validation import list_cases, run_case      # deferred: jax (see _cmd_mesh)
 
     cases = list_cases()
     if "all" in args.name and len(args.name) > 1:
@@ -233,7 +244,7 @@ def _cmd_validate(args):
 
 
 def _cmd_run(args):
-    from .scene import run_scene
+    from .scene import run_scene      # deferred: the solvers (see _cmd_mesh)
 
     return run_scene(args.scene, out=args.out, resume=args.resume, dry_run=args.dry_run,
                      overwrite=args.overwrite, overrides=args.overrides, max_steps=args.max_steps,
@@ -264,7 +275,7 @@ def check_writable_dir(path, what):
 
 
 def _cmd_render(args):
-    from .viz import render_run
+    from .viz import render_run       # deferred: pyvista, matplotlib
 
     if args.every < 1:
         raise ValueError(f"--every must be >= 1, got {args.every}")

@@ -254,7 +254,7 @@ def test_dump_toml_round_trip():
     for name in list_scenes():
         sc = load_scene(name)
         again = validate(parse_scene(dump_toml(sc.data), "x"), name=name, label="x", source=sc.source)
-        assert again.data == sc.data, name
+        assert again.data == sc.data and again.config == sc.config, name
 
 
 # ----------------------------------------------------------------------------- the command line
@@ -294,22 +294,27 @@ def test_run_help_documents_set():
 
 DRY = """
 import sys, json
+from femshell import chemistry, coupled
 from femshell.shell import model
-def refuse(*a, **k):
-    raise AssertionError("a dry run built a ShellModel")
-model.ShellModel.__init__ = refuse          # a dry run must not even build the shell
+def refuse(what):
+    def init(*a, **k):
+        raise AssertionError(f"a dry run built a {what}")
+    return init
+model.ShellModel.__init__ = refuse("ShellModel")          # a dry run must not even build the shell,
+coupled.CoupledLoop.__init__ = refuse("CoupledLoop")      # nor the time loop,
+chemistry.ReactionDiffusion.__init__ = refuse("ReactionDiffusion")    # nor the chemistry
 from femshell.scene import run_scene
 run_scene(sys.argv[1], dry_run=True, overrides=sys.argv[2:])
-mods = ["femshell.coupled", "femshell.chemistry", "femshell.solvers.continuation", "pyvista", "jax"]
+mods = ["femshell.solvers.continuation", "pyvista", "jax"]
 print(json.dumps({m: m in sys.modules for m in mods}))
 """
 
 
+# the model's parameter classes (femshell.coupled) give the scene's physical defaults, so they are imported;
+# nothing is built from them
 @pytest.mark.parametrize("scene, overrides, imported", [
-    ("clamped-plate-buckling", ["mesh.edge_length=0.3"],
-     {"femshell.coupled": False, "femshell.chemistry": False, "femshell.solvers.continuation": False}),
-    ("default", ["mesh.n_vertices=200"],
-     {"femshell.coupled": False, "femshell.chemistry": False, "femshell.solvers.continuation": False}),
+    ("clamped-plate-buckling", ["mesh.edge_length=0.3"], {"femshell.solvers.continuation": False}),
+    ("default", ["mesh.n_vertices=200"], {"femshell.solvers.continuation": False}),
 ])
 def test_dry_run_builds_and_imports_nothing(tmp_path, scene, overrides, imported):
     r = subprocess.run([sys.executable, "-c", DRY, scene, *overrides], capture_output=True, text=True, timeout=180,
@@ -481,3 +486,19 @@ def test_a_time_scene_passes_its_source_rule_to_the_loop():
     assert coupled_parameters(scene)[1].source_rule == "extrapolated"
     with pytest.raises(SceneError, match='source_rule = "midpoint" is not one of "start", "extrapolated"'):
         load_scene("default", ["solver.source_rule=midpoint"])
+
+
+def test_sections_are_typed_and_the_physical_defaults_are_the_models(tmp_path, monkeypatch):
+    import femshell.coupled as coupled
+    from femshell.scene.config import ChemistryConfig, InitialConfig, TimeSolver
+
+    sc = load_scene(write(tmp_path, SPHERE))
+    assert isinstance(sc.chemistry, ChemistryConfig) and isinstance(sc.initial, InitialConfig)
+    assert isinstance(sc.solver, TimeSolver) and sc.solver.t_final == sc["solver"]["t_final"]
+    model, spot, stepping = coupled.MechanochemicalModel(), coupled.InitialSpot(), coupled.TimeStepping()
+    assert (sc.material.nu, sc.growth.lam_max, sc.chemistry.w, sc.chemistry.Hs) == \
+        (model.nu, model.lam_max, model.w, model.Hs)
+    assert (sc.initial.pole, sc.initial.distance, sc.solver.dt_max) == (spot.pole, spot.distance, stepping.dt_max)
+    # a default is read from the model's class when a scene is checked, not copied into the scene's
+    monkeypatch.setattr(coupled.MechanochemicalModel.__dataclass_fields__["w"], "default", 7.0)
+    assert load_scene(write(tmp_path, SPHERE)).chemistry.w == 7.0

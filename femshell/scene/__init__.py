@@ -1,6 +1,7 @@
 """Scenes: a TOML file -> the parts that scene needs and nothing else -> a run directory.
 
-* :mod:`.schema`: the file format, validation with one-line errors, ``--set`` overrides;
+* :mod:`.config`: one dataclass per section (keys, ranges, defaults), the validated :class:`Scene`;
+* :mod:`.schema`: validation with one-line errors; :mod:`.text`: TOML reading and writing, ``--set``;
 * :mod:`.build`: the mesh, the shell, the time loop, ``--dry-run`` plans;
 * :mod:`.runner`: ``femshell run``: progress, checkpoints, ``--resume``, summary, pictures.
 
@@ -10,7 +11,7 @@ Example
 >>> "default" in list_scenes()
 True
 >>> sc = load_scene("clamped-plate-buckling", ["mesh.edge_length=0.25"])
->>> sc.kind, sc["growth"]["law"]
+>>> sc.kind, sc.growth.law
 ('continuation', 'uniform')
 """
 

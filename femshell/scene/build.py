@@ -11,18 +11,23 @@
 * :func:`time_loop` (time): the :class:`~femshell.coupled.CoupledLoop` (its chemistry builds
   a diffusion operator only for D > 0). No continuation machinery is imported.
 
-Units: design.md section 3 (lengths in cell sizes, time in 1/β, E = 1 by default).
+Units: lengths in cell sizes, time in 1/β, E = 1 by default (theory §1.3).
 """
 
 from __future__ import annotations
 
+import difflib
 import math
+from dataclasses import asdict, fields
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from .schema import Scene, SceneError, apply_overrides, parse_scene, validate
+from ..growth import GrowthRestState
+from .config import NEWTON_KEYS
+from .schema import Scene, SceneError, validate
+from .text import apply_overrides, parse_scene, tomllib
 
 __all__ = ["load_scene", "list_scenes", "embedded_scene_path", "make_mesh", "plan", "boundary_conditions",
            "make_loads", "shell_parts", "ShellParts", "time_loop", "count_unknowns"]
@@ -38,8 +43,6 @@ def _scenes_dir():
 
 def list_scenes() -> dict:
     """Embedded scenes: name -> one-line description (sorted by name, ``default`` first)."""
-    from .schema import tomllib
-
     out = {}
     d = _scenes_dir()
     names = sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".toml"))
@@ -65,8 +68,6 @@ def load_scene(scene, overrides=()) -> Scene:
     A :class:`Scene` (already validated) is returned as it is. Raises :class:`SceneError`
     (a ValueError) with one line per problem.
     """
-    import difflib
-
     if isinstance(scene, Scene):
         if overrides:
             raise SceneError(f"scene '{scene.name}' is already loaded: give overrides to load_scene "
@@ -106,8 +107,8 @@ def make_mesh(scene: Scene):
     """The scene's mesh (gmsh or file); SceneError for generator errors and unknown curve names."""
     from ..mesh import generators as g
 
-    m = dict(scene["mesh"])
-    kind = m.pop("kind")
+    m = asdict(scene.mesh)
+    kind = scene.mesh_kind
     try:
         if kind == "file":
             from ..mesh import check_mesh
@@ -115,7 +116,7 @@ def make_mesh(scene: Scene):
             mesh = read_mesh(m["file"])
             report = check_mesh(mesh)   # a drawn mesh may be degenerate, tangled or misoriented: say so now
             if report.n_components > 1:
-                _check_pieces_supported(mesh, report.n_components, scene["boundary"], Path(m["file"]).name)
+                _check_pieces_supported(mesh, report.n_components, scene.boundary, Path(m["file"]).name)
         else:
             kw = {k: v for k, v in m.items() if v is not None}
             if kind == "hemisphere" and "hole_angle" in kw:
@@ -132,9 +133,9 @@ def make_mesh(scene: Scene):
     if kind == "file":
         curves = tuple(mesh.topology.boundary_edge_groups)
         errors = []
-        for sec, items in (("boundary", scene["boundary"]), ("loads", scene["loads"])):
+        for sec, items in (("boundary", scene.boundary), ("loads", scene.loads)):
             for i, it in enumerate(items):
-                c = it.get("curve")
+                c = it.curve
                 if c is not None and c not in curves:
                     errors.append(f"{scene.label}: [[{sec}]] #{i + 1} curve = \"{c}\" is not a boundary curve of "
                                   f"{Path(m['file']).name} (curves: {', '.join(curves) or 'none: the mesh is closed'})")
@@ -156,7 +157,7 @@ def _check_pieces_supported(mesh, n_pieces, boundary, name):
     n = mesh.n_vertices
     _, piece = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)), directed=False)
     groups = mesh.topology.boundary_vertex_groups
-    held = {int(p) for b in boundary if b.get("curve") in groups for p in piece[groups[b["curve"]]]}
+    held = {int(p) for b in boundary if b.curve in groups for p in piece[groups[b.curve]]}
     free = [k for k in range(n_pieces) if k not in held]
     if free:
         where = "; ".join(f"piece {k}: {int(np.sum(piece == k))} vertices around "
@@ -170,18 +171,17 @@ def boundary_conditions(scene: Scene, mesh) -> list:
     from ..shell import Clamped, Prescribed, SimplySupported, Symmetry
 
     out = []
-    for bc in scene["boundary"]:
-        t = bc["type"]
+    for bc in scene.boundary:
+        t = bc.type
         if t == "clamped":
-            out.append(Clamped(bc["curve"]))
+            out.append(Clamped(bc.curve))
         elif t == "simply_supported":
-            out.append(SimplySupported(bc["curve"]))
+            out.append(SimplySupported(bc.curve))
         elif t == "symmetry":
-            out.append(Symmetry(bc["axis"], bc["value"]))
+            out.append(Symmetry(bc.axis, bc.value))
         else:
-            comps = tuple(sorted({AXIS[c] for c in bc["components"]}))
-            disp = tuple(bc["displacement"])
-            out.append(Prescribed(curve=bc["curve"], components=comps, displacement=disp))
+            comps = tuple(sorted({AXIS[c] for c in bc.components}))
+            out.append(Prescribed(curve=bc.curve, components=comps, displacement=tuple(bc.displacement)))
     return out
 
 
@@ -190,25 +190,25 @@ def make_loads(scene: Scene, mesh) -> list:
                          PointForce)
 
     out = []
-    for ld in scene["loads"]:
-        t = ld["type"]
+    for ld in scene.loads:
+        t = ld.type
         if t == "point_force":
-            if ld.get("point") is not None:
-                v = int(np.argmin(np.linalg.norm(mesh.points - np.asarray(ld["point"]), axis=1)))
-                out.append(PointForce(mesh, [v], ld["force"]))
+            if ld.point is not None:
+                v = int(np.argmin(np.linalg.norm(mesh.points - np.asarray(ld.point), axis=1)))
+                out.append(PointForce(mesh, [v], list(ld.force)))
             else:
-                verts = mesh.topology.boundary_vertex_groups[ld["curve"]]
-                out.append(PointForce(mesh, verts, ld["force"]))
+                verts = mesh.topology.boundary_vertex_groups[ld.curve]
+                out.append(PointForce(mesh, verts, list(ld.force)))
         elif t == "area_load":
-            out.append(AreaLoad(mesh, ld["traction"]))
+            out.append(AreaLoad(mesh, list(ld.traction)))
         elif t == "edge_force":
-            out.append(EdgeForce(mesh, ld["curve"], ld["force"]))
+            out.append(EdgeForce(mesh, ld.curve, list(ld.force)))
         elif t == "dead_pressure":
-            out.append(DeadPressure(mesh, ld["pressure"]))
+            out.append(DeadPressure(mesh, ld.pressure))
         elif t == "follower_pressure":
-            out.append(FollowerPressure(ld["pressure"]))
+            out.append(FollowerPressure(ld.pressure))
         elif t == "edge_moment":
-            out.append(EdgeMoment(ld["curve"], ld["moment"]))
+            out.append(EdgeMoment(ld.curve, ld.moment))
         else:  # pragma: no cover - validated
             raise SceneError(f"{scene.label}: unknown load type {t}")
     assert all(isinstance(x, (DeadLoad, FollowerPressure, EdgeMoment)) for x in out)
@@ -248,18 +248,22 @@ def centroid_radius(mesh) -> np.ndarray:
     return np.hypot(c[:, 0], c[:, 1])
 
 
-def stretch_field(growth: dict, mesh, strain=None, inner_radius=None) -> np.ndarray:
-    """Element stretches s (m,) of a mechanics growth law (design.md 1.1, 1.6)."""
+def stretch_field(growth, mesh, strain=None, inner_radius=None) -> np.ndarray:
+    """Element stretches s (m,) of a mechanics growth law (:class:`GrowthConfig`; theory §1.1, §1.6).
+
+    uniform: s = 1 + g; inner_region: s = 1 + g f(r), f the step 1 for r < R2 (by centroid), or
+    f = expit(2 (R2 − r)/transition) for transition > 0.
+    """
     m = mesh.n_triangles
-    law = growth["law"]
-    g = growth.get("strain", 0.0) if strain is None else strain
+    law = growth.law
+    g = (growth.strain or 0.0) if strain is None else strain
     if law in ("none", None):
         return np.ones(m)
     if law == "uniform":
         return np.full(m, 1.0 + g)
-    r2 = growth["inner_radius"] if inner_radius is None else inner_radius
+    r2 = growth.inner_radius if inner_radius is None else inner_radius
     r = centroid_radius(mesh)
-    w = growth.get("transition", 0.0)
+    w = growth.transition or 0.0
     if w > 0:
         from scipy.special import expit
         frac = expit(2.0 * (r2 - r) / w)
@@ -277,14 +281,13 @@ class ShellParts:
     """
 
     def __init__(self, scene: Scene, mesh):
-        from ..growth import GrowthRestState
-        from ..shell import Material, ShellModel, flat_rest_state
+        from ..shell import Material, ShellModel, flat_rest_state      # deferred: jax
 
         self.scene = scene
         self.mesh = mesh
-        mat, sh = scene["material"], scene["shell"]
-        self.h0 = sh["thickness"]
-        self.mode = sh["thickness_mode"]
+        mat, sh = scene.material, scene.shell
+        self.h0 = sh.thickness
+        self.mode = sh.thickness_mode
         self.bcs = boundary_conditions(scene, mesh)
         self.loads = make_loads(scene, mesh)
         try:
@@ -292,11 +295,11 @@ class ShellParts:
         except ValueError as exc:
             raise SceneError(f"{scene.label}: [mesh]: {exc}") from None
         try:
-            self.model = ShellModel(mesh, Material(E=mat["E"], nu=mat["nu"], law=mat["law"]), rest, self.bcs,
+            self.model = ShellModel(mesh, Material(E=mat.E, nu=mat.nu, law=mat.law), rest, self.bcs,
                                     self.loads)
         except ValueError as exc:
             raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
-        k0 = sh["natural_curvature"]
+        k0 = sh.natural_curvature
         self.growth = GrowthRestState(self.model, self.h0, self.mode, "mesh" if k0 == "mesh" else "k0",
                                       0.0 if k0 == "mesh" else float(k0))
         self.rest_for = self.growth.rest_state
@@ -318,56 +321,54 @@ def coupled_parameters(scene: Scene):
     """MechanochemicalModel, TimeStepping and the initial condition of a time scene."""
     from ..coupled import InitialSpot, MechanochemicalModel, TimeStepping
 
-    mat, sh, gr, ch, ini, so = (scene[k] for k in ("material", "shell", "growth", "chemistry", "initial", "solver"))
-    k0 = sh["natural_curvature"]
+    mat, sh, gr, ch, ini, so = (scene.material, scene.shell, scene.growth, scene.chemistry, scene.initial,
+                                scene.solver)
+    k0 = sh.natural_curvature
     try:
         params = MechanochemicalModel(
-            nu=mat["nu"], E=mat["E"], membrane_law=mat["law"], h0=sh["thickness"], thickness_mode=sh["thickness_mode"],
-            k0=None if k0 == "mesh" else float(k0), lam_max=gr["lam_max"], lam_min=gr["lam_min"],
-            lam0=gr["lam0"], b=gr["b"], c_star=gr["c_star"], w=ch["w"], Hs=ch["Hs"], beta=ch["beta"], D=ch["D"],
+            nu=mat.nu, E=mat.E, membrane_law=mat.law, h0=sh.thickness, thickness_mode=sh.thickness_mode,
+            k0=None if k0 == "mesh" else float(k0), lam_max=gr.lam_max, lam_min=gr.lam_min,
+            lam0=gr.lam0, b=gr.b, c_star=gr.c_star, w=ch.w, Hs=ch.Hs, beta=ch.beta, D=ch.D,
             rest_curvature="mesh" if k0 == "mesh" else "k0")
     except ValueError as exc:
         raise SceneError(f"{scene.label}: [growth]/[chemistry]: {exc}") from None
-    kw = {k: so[k] for k in ("t_final", "dt_initial", "dt_min", "dt_max", "ds_max", "grow", "safety", "max_cuts",
-                             "stationary_rate_c", "stationary_rate_x", "stationary_steps", "stationary_pattern_time",
-                             "stationary_pattern_tol", "newton_atol_strain",
-                             "ramp_ds", "snap_ds", "snap_max_iter", "quasi_newton", "newton_stall",
-                             "feedback_amplification", "source_rule", "max_steps")}
-    if so.get("newton_rtol") is not None:
-        kw["newton_rtol"] = so["newton_rtol"]
-    if so.get("newton_max_iter") is not None:
-        kw["newton_max_iter"] = so["newton_max_iter"]
-    kw["newton_backend"] = so["backend"]
+    # every time-loop control of the scene is a TimeStepping field of the same name; the Newton ones only if given
+    kw = {f.name: getattr(so, f.name) for f in fields(so) if f.name not in ("kind", *NEWTON_KEYS)}
+    if so.newton_rtol is not None:
+        kw["newton_rtol"] = so.newton_rtol
+    if so.newton_max_iter is not None:
+        kw["newton_max_iter"] = so.newton_max_iter
+    kw["newton_backend"] = so.backend
     try:
         stepping = TimeStepping(**kw)
     except ValueError as exc:
         raise SceneError(f"{scene.label}: [solver] {exc}") from None
     c0 = None
-    if ini["kind"] in ("spot", "spots"):
-        c0 = InitialSpot(amplitude=ini["amplitude"], width=ini["width"], elongation=ini["elongation"],
-                         pole=tuple(ini["pole"]), direction=None if ini["direction"] is None else tuple(ini["direction"]),
-                         distance=ini["distance"])
+    if ini.kind in ("spot", "spots"):
+        c0 = InitialSpot(amplitude=ini.amplitude, width=ini.width, elongation=ini.elongation,
+                         pole=tuple(ini.pole), direction=None if ini.direction is None else tuple(ini.direction),
+                         distance=ini.distance)
     return params, stepping, c0
 
 
-def spot_centres(ini: dict) -> np.ndarray:
+def spot_centres(ini) -> np.ndarray:
     """Unit directions of the spots of ``[initial] kind = "spots"`` (k, 3).
 
     "icosahedron": the 12 vertices of a regular icosahedron, turned so that one of them
     is ``pole``; "random": ``count`` directions uniform on the sphere (``seed``), the first
     one moved to ``pole``.
     """
-    pole = np.asarray(ini["pole"], float)
+    pole = np.asarray(ini.pole, float)
     pole = pole / np.linalg.norm(pole)
-    if ini["layout"] == "icosahedron":
+    if ini.layout == "icosahedron":
         phi = (1 + math.sqrt(5)) / 2
         v = np.array([[-1, phi, 0], [1, phi, 0], [-1, -phi, 0], [1, -phi, 0], [0, -1, phi], [0, 1, phi],
                       [0, -1, -phi], [0, 1, -phi], [phi, 0, -1], [phi, 0, 1], [-phi, 0, -1], [-phi, 0, 1]], float)
     else:
-        rng = np.random.default_rng(int(ini["seed"]))
-        v = rng.standard_normal((int(ini["count"]), 3))
+        rng = np.random.default_rng(int(ini.seed))
+        v = rng.standard_normal((int(ini.count), 3))
     v /= np.linalg.norm(v, axis=1)[:, None]
-    a = v[0] if ini["layout"] == "random" else v[5]
+    a = v[0] if ini.layout == "random" else v[5]
     # rotation taking a to the pole (Rodrigues)
     w = np.cross(a, pole)
     s, c = np.linalg.norm(w), float(a @ pole)
@@ -383,17 +384,17 @@ def initial_concentration(scene: Scene, mesh, params):
     """The c0 given to the time loop: an InitialSpot, a vertex array (several spots) or None."""
     from ..coupled import gaussian_spot
 
-    ini = scene["initial"]
+    ini = scene.initial
     _, _, spot = coupled_parameters(scene)
-    if ini["kind"] != "spots":
+    if ini.kind != "spots":
         return spot
-    amp = params.c_max if ini["amplitude"] is None else ini["amplitude"]
-    width = params.h0 if ini["width"] is None else ini["width"]
+    amp = params.c_max if ini.amplitude is None else ini.amplitude
+    width = params.h0 if ini.width is None else ini.width
     pts = np.asarray(mesh.points, float)
     # each vertex takes its largest spot (overlapping spots do not add up above the amplitude)
-    direction = None if ini["direction"] is None else tuple(ini["direction"])
-    return np.max([gaussian_spot(pts, amp, width, pole=tuple(p), elongation=ini["elongation"], direction=direction,
-                                 distance=ini["distance"]) for p in spot_centres(ini)], axis=0)
+    direction = None if ini.direction is None else tuple(ini.direction)
+    return np.max([gaussian_spot(pts, amp, width, pole=tuple(p), elongation=ini.elongation, direction=direction,
+                                 distance=ini.distance) for p in spot_centres(ini)], axis=0)
 
 
 def time_loop(scene: Scene, mesh, state=None, log=None):
@@ -421,11 +422,52 @@ def _source_text(scene: Scene) -> str:
     return str(src)
 
 
+def _time_plan(scene: Scene, lines: list, flags: dict, operators: list):
+    """The dry-run lines of a time scene's chemistry, initial condition and loop."""
+    so, sh = scene.solver, scene.shell
+    ch, ini = scene.chemistry, scene.initial
+    flags["chemistry"] = True
+    flags["time_loop"] = True
+    if ch.D > 0:
+        flags["diffusion_operator"] = True
+        operators.append("P1 Laplace-Beltrami stiffness + lumped mass on the deformed surface (D > 0)")
+        chem = f"D={ch.D:g}: P1 Laplace-Beltrami operator, diffusion implicit, degradation exact"
+    else:
+        chem = "D=0: exact exponential update per vertex (no diffusion operator built)"
+    lines.append(f"  chemistry  {chem}; w={ch.w:g} Hs={ch.Hs:g} beta={ch.beta:g} "
+                 f"(c_max = {ch.w * ch.Hs / ch.beta if ch.beta else math.inf:g})")
+    if ini.kind == "spots":
+        n = 12 if ini.layout == "icosahedron" else ini.count
+        lines.append(f"  initial    {n} Gaussian spots ({ini.layout}, one at pole {tuple(ini.pole)}): "
+                     f"amplitude {ini.amplitude if ini.amplitude is not None else 'c_max'} width "
+                     f"{ini.width if ini.width is not None else sh.thickness}")
+    elif ini.kind == "spot":
+        lines.append(f"  initial    Gaussian spot at pole {tuple(ini.pole)}: amplitude "
+                     f"{ini.amplitude if ini.amplitude is not None else 'c_max'} width "
+                     f"{ini.width if ini.width is not None else sh.thickness} elongation "
+                     f"{ini.elongation:g}")
+    else:
+        lines.append("  initial    c = 0")
+    pattern_stop = (f" or pattern unchanged for {so.stationary_pattern_time:g}"
+                    if so.stationary_pattern_time else "")
+    lines.append(f"  solver     mechanochemical time loop: t_final={so.t_final:g}, dt in [{so.dt_min:g}, "
+                 f"{so.dt_max:g}], ds_max={so.ds_max:g}"
+                 + (", source extrapolated to each step's midpoint where stable"
+                    if so.source_rule == "extrapolated" else "")
+                 + ", stationary below rates "
+                 f"{so.stationary_rate_c:g}/{so.stationary_rate_x:g} for {so.stationary_steps} steps"
+                 f"{pattern_stop}; Newton to stable equilibria")
+
+
+def _shown(value):
+    """A mesh argument as the scene's TOML has it (a pair as a list)."""
+    return list(value) if isinstance(value, tuple) else value
+
+
 def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
     """(lines, flags): what a run of ``scene`` builds. Builds the mesh if not given, nothing else."""
     if mesh is None:
         mesh = make_mesh(scene)
-    d = scene.data
     kind = scene.kind
     t = mesh.topology
     bcs = boundary_conditions(scene, mesh)
@@ -436,88 +478,56 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
     # a disk's "inner" circle is a named curve of interior edges (the mesh is refined inside it), not a boundary
     curves = [k + (" (interior)" if len(e) and np.all(t.edge_faces[e, 1] >= 0) else "")
               for k, e in t.boundary_edge_groups.items()]
-    lines = [f"scene '{scene.name}' ({_source_text(scene)}): {d['description'] or '(no description)'}"]
-    m = d["mesh"]
-    args = ", ".join(f"{k}={v}" for k, v in m.items() if k != "kind" and v is not None)
-    lines.append(f"  mesh       {m['kind']}({args}): {mesh.n_vertices} vertices, {mesh.n_triangles} triangles, "
+    lines = [f"scene '{scene.name}' ({_source_text(scene)}): {scene.description or '(no description)'}"]
+    args = ", ".join(f"{k}={_shown(v)}" for k, v in asdict(scene.mesh).items() if v is not None)
+    lines.append(f"  mesh       {scene.mesh_kind}({args}): {mesh.n_vertices} vertices, {mesh.n_triangles} triangles, "
                  f"{t.n_edges} edges; " + (f"curves {', '.join(curves)}" if curves else "closed (no boundary)"))
-    mat, sh = d["material"], d["shell"]
-    lines.append(f"  shell      Kirchhoff-Love mid-edge element, E={mat['E']:g} nu={mat['nu']:g} "
-                 f"membrane={mat.get('law', 'svk')} h={sh['thickness']:g} "
-                 f"thickness_mode={sh['thickness_mode']} rest curvature={sh['natural_curvature']}")
+    mat, sh = scene.material, scene.shell
+    lines.append(f"  shell      Kirchhoff-Love mid-edge element, E={mat.E:g} nu={mat.nu:g} "
+                 f"membrane={mat.law} h={sh.thickness:g} "
+                 f"thickness_mode={sh.thickness_mode} rest curvature={sh.natural_curvature}")
     lines.append(f"  unknowns   {unk['free']} free of {unk['total']} (3 per vertex + 1 per edge; "
                  f"{unk['positions_fixed']} position components and {unk['angles_fixed']} edge angles fixed"
                  + (", rigid-body motions pinned" if unk["rigid_pins"] else "") + ")")
-    bl = ", ".join(f"{b['type']}({b.get('curve') or b.get('axis')})" for b in d["boundary"]) or "none (free)"
+    bl = ", ".join(f"{b.type}({b.curve or b.axis})" for b in scene.boundary) or "none (free)"
     lines.append(f"  boundary   {bl}")
-    if d["loads"]:
-        ll = ", ".join(f"{x['type']}" + (f"({x['curve']})" if x.get("curve") else "") for x in d["loads"])
+    if scene.loads:
+        ll = ", ".join(f"{x.type}" + (f"({x.curve})" if x.curve else "") for x in scene.loads)
         lines.append(f"  loads      {ll} (times the load factor)")
-    gr = d["growth"]
-    law = gr["law"]
+    gr = scene.growth
+    law = gr.law
     if law == "contractility":
-        lines.append(f"  growth     contractility: Λmax={gr['lam_max']:g} Λmin={gr['lam_min']:g} "
-                     f"Λ0={gr['lam0'] if gr['lam0'] is not None else gr['lam_max']:g} b={gr['b']:g} c*={gr['c_star']:g}")
+        lines.append(f"  growth     contractility: Λmax={gr.lam_max:g} Λmin={gr.lam_min:g} "
+                     f"Λ0={gr.lam0 if gr.lam0 is not None else gr.lam_max:g} b={gr.b:g} c*={gr.c_star:g}")
     elif law == "uniform":
-        lines.append(f"  growth     uniform: s = 1 + {gr['strain']:g}")
+        lines.append(f"  growth     uniform: s = 1 + {gr.strain:g}")
     elif law == "inner_region":
-        lines.append(f"  growth     inner region r < {gr['inner_radius']:g}: s = 1 + {gr['strain']:g}"
-                     + (f", smooth step of width {gr['transition']:g}" if gr["transition"] else ""))
+        lines.append(f"  growth     inner region r < {gr.inner_radius:g}: s = 1 + {gr.strain:g}"
+                     + (f", smooth step of width {gr.transition:g}" if gr.transition else ""))
     else:
         lines.append("  growth     none")
     operators = ["shell energy, gradient and Hessian (JAX, sparse assembly)", "sparse LDLᵀ (Newton, inertia)"]
     flags = {"mesh": True, "shell": True, "chemistry": False, "diffusion_operator": False, "time_loop": False,
-             "continuation": False, "loads": bool(d["loads"]), "n_vertices": mesh.n_vertices,
+             "continuation": False, "loads": bool(scene.loads), "n_vertices": mesh.n_vertices,
              "n_triangles": mesh.n_triangles, "unknowns": unk["free"], "solver": kind}
-    so = d["solver"]
+    so = scene.solver
     if kind == "time":
-        ch, ini = d["chemistry"], d["initial"]
-        flags["chemistry"] = True
-        flags["time_loop"] = True
-        if ch["D"] > 0:
-            flags["diffusion_operator"] = True
-            operators.append("P1 Laplace-Beltrami stiffness + lumped mass on the deformed surface (D > 0)")
-            chem = f"D={ch['D']:g}: P1 Laplace-Beltrami operator, diffusion implicit, degradation exact"
-        else:
-            chem = "D=0: exact exponential update per vertex (no diffusion operator built)"
-        lines.append(f"  chemistry  {chem}; w={ch['w']:g} Hs={ch['Hs']:g} beta={ch['beta']:g} "
-                     f"(c_max = {ch['w'] * ch['Hs'] / ch['beta'] if ch['beta'] else math.inf:g})")
-        if ini["kind"] == "spots":
-            n = 12 if ini["layout"] == "icosahedron" else ini["count"]
-            lines.append(f"  initial    {n} Gaussian spots ({ini['layout']}, one at pole {tuple(ini['pole'])}): "
-                         f"amplitude {ini['amplitude'] if ini['amplitude'] is not None else 'c_max'} width "
-                         f"{ini['width'] if ini['width'] is not None else sh['thickness']}")
-        elif ini["kind"] == "spot":
-            lines.append(f"  initial    Gaussian spot at pole {tuple(ini['pole'])}: amplitude "
-                         f"{ini['amplitude'] if ini['amplitude'] is not None else 'c_max'} width "
-                         f"{ini['width'] if ini['width'] is not None else sh['thickness']} elongation "
-                         f"{ini['elongation']:g}")
-        else:
-            lines.append("  initial    c = 0")
-        pattern_stop = (f" or pattern unchanged for {so['stationary_pattern_time']:g}"
-                        if so["stationary_pattern_time"] else "")
-        lines.append(f"  solver     mechanochemical time loop: t_final={so['t_final']:g}, dt in [{so['dt_min']:g}, "
-                     f"{so['dt_max']:g}], ds_max={so['ds_max']:g}"
-                     + (", source extrapolated to each step's midpoint where stable"
-                        if so["source_rule"] == "extrapolated" else "")
-                     + ", stationary below rates "
-                     f"{so['stationary_rate_c']:g}/{so['stationary_rate_x']:g} for {so['stationary_steps']} steps"
-                     f"{pattern_stop}; Newton to stable equilibria")
+        _time_plan(scene, lines, flags, operators)
     elif kind == "static":
-        lines.append(f"  solver     static: {so['steps']} increments of the load factor / growth from 0 to 1, "
-                     f"Newton to {'stable ' if so['stable'] else ''}equilibria (up to {so['max_cuts']} cuts)")
+        lines.append(f"  solver     static: {so.steps} increments of the load factor / growth from 0 to 1, "
+                     f"Newton to {'stable ' if so.stable else ''}equilibria (up to {so.max_cuts} cuts)")
     else:
         flags["continuation"] = True
         operators.append("bordered solves, shift-invert Lanczos for the smallest eigenvalues")
-        lines.append(f"  solver     pseudo-arclength continuation in {so['parameter']} from "
-                     f"{so['start'] if so['start'] is not None else 'the scene value'} to {so['stop']}, ds={so['ds']:g}, "
-                     f"max {so['max_steps']} steps; folds/branch points located: {so['detect']}"
-                     + ("; then the branch of the first branch point" if so["switch_branch"] else ""))
+        lines.append(f"  solver     pseudo-arclength continuation in {so.parameter} from "
+                     f"{so.start if so.start is not None else 'the scene value'} to {so.stop}, ds={so.ds:g}, "
+                     f"max {so.max_steps} steps; folds/branch points located: {so.detect}"
+                     + ("; then the branch of the first branch point" if so.switch_branch else ""))
     lines.append(f"  operators  {'; '.join(operators)}")
-    out = d["output"]
-    lines.append(f"  output     frame every {out['every']} step(s): series.pvd + VTU with {', '.join(out['fields'])}; "
-                 f"checkpoint every {out['checkpoint_every']} step(s); summary.json"
-                 + ("; pictures" if out["pictures"] else "") + ("; movie" if out["movie"] else ""))
+    out = scene.output
+    lines.append(f"  output     frame every {out.every} step(s): series.pvd + VTU with {', '.join(out.fields)}; "
+                 f"checkpoint every {out.checkpoint_every} step(s); summary.json"
+                 + ("; pictures" if out.pictures else "") + ("; movie" if out.movie else ""))
     not_built = [name for name, on in (("chemistry", flags["chemistry"]), ("diffusion operator",
                                         flags["diffusion_operator"]), ("time loop", flags["time_loop"]),
                                        ("continuation", flags["continuation"]), ("loads", flags["loads"])) if not on]

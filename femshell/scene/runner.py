@@ -12,7 +12,7 @@ Output directory ``DIR`` (``--out``, default ``./<scene name>-out``)::
     branch.csv          continuation only: one row per accepted and special point
     special/            continuation only: the special points with their critical modes
 
-Policy (design.md section 4; every file is written atomically by :mod:`femshell.io`):
+Policy (every file is written atomically by :mod:`femshell.io`):
 
 * A new run refuses a ``DIR`` that already holds a run (finished or not), unless
   ``--resume`` (continue it) or ``--overwrite`` (replace femshell's files there; other
@@ -66,9 +66,12 @@ from pathlib import Path
 import numpy as np
 
 from .. import io as fio
+from ..solvers.linear import Refactorizer
+from ..solvers.newton import NewtonError, follow_load
 from .._interrupts import committing, interruptible, raise_if_interrupted, step_scope
 from .build import load_scene, make_mesh, plan, shell_parts, stretch_field, time_loop
-from .schema import Scene, SceneError, continuation_start, dump_toml, parse_scene, validate
+from .schema import Scene, SceneError, continuation_start, validate
+from .text import apply_overrides, dump_toml, parse_scene
 
 __all__ = ["run_scene", "RunDirError", "RUN_FILES"]
 
@@ -355,7 +358,7 @@ class BaseRunner:
         self.max_steps = max_steps
         self.max_steps_from = "--max-steps"
         self.verbose = verbose
-        self.out = scene["output"]
+        self.out = scene.output
         self.step = 0                 # accepted steps in total (all invocations)
         self.steps_this_run = 0
         self.status = "running"
@@ -452,9 +455,9 @@ class BaseRunner:
     def accepted(self, text, fraction):
         self.step += 1
         self.steps_this_run += 1
-        if self.step % self.out["every"] == 0:
+        if self.step % self.out.every == 0:
             self.write_frame()
-        if self.step % self.out["checkpoint_every"] == 0:
+        if self.step % self.out.checkpoint_every == 0:
             self.checkpoint()
         self.p.step(text, fraction)
 
@@ -545,10 +548,10 @@ class BaseRunner:
             except KeyboardInterrupt:
                 late = True
             pics = []
-            if self.status in FINAL and self.out["pictures"] and not late:
+            if self.status in FINAL and self.out.pictures and not late:
                 try:
                     pics = self.pictures()
-                    if self.out["movie"]:
+                    if self.out.movie:
                         pics += self._movie()
                 except KeyboardInterrupt:
                     late = True
@@ -560,7 +563,7 @@ class BaseRunner:
                         self.write_summary(pics)
                 except KeyboardInterrupt:
                     late = True
-            if late and self.status in FINAL and self.out["pictures"]:
+            if late and self.status in FINAL and self.out.pictures:
                 self.p.failure(f"warning: interrupted while writing the results: pictures skipped (femshell render "
                                f"{rdp} makes them)")
         self.report(code)
@@ -574,17 +577,17 @@ class BaseRunner:
         from at most MAX_MOVIE_FRAMES frames (a top view is drawn for each frame it uses)."""
         from ..viz import MAX_MOVIE_FRAMES, render_run
 
-        pf = self.out["picture_field"]
-        field = pf if pf in self.out["fields"] else None
+        pf = self.out.picture_field
+        field = pf if pf in self.out.fields else None
         every = max(1, math.ceil(len(self.writer) / MAX_MOVIE_FRAMES))
-        paths = render_run(self.rd.path, field=field, every=every, cmap=self.out["cmap"])
+        paths = render_run(self.rd.path, field=field, every=every, cmap=self.out.cmap)
         return [p for p in paths if p.suffix in (".gif", ".mp4")]
 
     def _thickness_warning(self):
         """Kirchhoff–Love theory needs h ≪ the surface's size: say so where h is a quarter of it or more."""
         from ..geometry import triangle_areas
 
-        h = self.scene.data.get("shell", {}).get("thickness")
+        h = self.scene.shell.thickness
         area = float(triangle_areas(np.asarray(self.mesh.points, float), self.mesh.triangles).sum())
         size = math.sqrt(area / math.pi)        # a disk's radius; twice a sphere's
         if isinstance(h, (int, float)) and size > 0 and h > 0.25 * size:
@@ -596,11 +599,10 @@ class BaseRunner:
         return "done"
 
     def write_summary(self, pics):
-        d = self.scene.data
         m = self.mesh
         fin, res = self._final_measures()
         summary = {
-            "scene": self.scene.name, "description": d["description"],
+            "scene": self.scene.name, "description": self.scene.description,
             "source": str(self.scene.source) if self.scene.source else None,
             "solver": self.kind, "status": self.status, "message": self.message,
             "steps": self.step, "steps_this_run": self.steps_this_run, "resumes": self.resumes,
@@ -609,7 +611,7 @@ class BaseRunner:
             "wall_s": self.wall_before + self.p.elapsed, "wall_s_this_run": self.p.elapsed,
             "mesh": {"n_vertices": m.n_vertices, "n_triangles": m.n_triangles, "n_edges": m.topology.n_edges,
                      "name": m.name},
-            "parameters": d,
+            "parameters": self.scene.data,
             "final": _clean({**fin, **res}),
             "files": {"series": f"{SERIES}.pvd", "frames": len(self.writer), "checkpoint": CHECKPOINT,
                       "scene": SCENE_FILE,
@@ -680,7 +682,7 @@ class TimeRunner(BaseRunner):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        cap = self.scene["solver"].get("max_steps")      # steps of one invocation, like --max-steps
+        cap = self.scene.solver.max_steps      # steps of one invocation, like --max-steps
         if cap is not None and (self.max_steps is None or cap < self.max_steps):
             self.max_steps, self.max_steps_from = cap, "solver.max_steps"
 
@@ -701,9 +703,9 @@ class TimeRunner(BaseRunner):
         if c0 is None:
             return
         field = c0.field(np.asarray(self.mesh.points, float), params) if hasattr(c0, "field") else np.asarray(c0)
-        ini = self.scene["initial"]
-        amp = params.c_max if ini.get("amplitude") is None else ini["amplitude"]
-        width = params.h0 if ini.get("width") is None else ini["width"]
+        ini = self.scene.initial
+        amp = params.c_max if ini.amplitude is None else ini.amplitude
+        width = params.h0 if ini.width is None else ini.width
         if math.isfinite(amp) and amp > 0 and field.max() < 0.5 * amp:
             pts, e = np.asarray(self.mesh.points, float), self.mesh.topology.edges
             edge = float(np.linalg.norm(pts[e[:, 1]] - pts[e[:, 0]], axis=1).mean())
@@ -758,7 +760,7 @@ class TimeRunner(BaseRunner):
 
     def frame(self):
         lp = self.loop_
-        pts, pd, cd = frame_fields(self.out["fields"], model=lp.shell, u=lp.u, s=lp.s, H_vertex=lp.H_vertex,
+        pts, pd, cd = frame_fields(self.out.fields, model=lp.shell, u=lp.u, s=lp.s, H_vertex=lp.H_vertex,
                                    c=lp.c, contractility=lp.params.contractility)
         return lp.t, pts, pd, cd
 
@@ -811,13 +813,13 @@ class TimeRunner(BaseRunner):
         lp = self.loop_
         d = self.rd.path / "pictures"
         d.mkdir(exist_ok=True)
-        name, values = _picture_field(self.out["picture_field"], lp.points, lp.shell, lp.u, c=lp.c,
+        name, values = _picture_field(self.out.picture_field, lp.points, lp.shell, lp.u, c=lp.c,
                                       H=lp.H_vertex, s=lp.s, contractility=lp.params.contractility)
         title = f"{self.scene.name}: t = {lp.t:.4g}"
         clim = (0.0, max(float(values.max()), 1e-12)) if name == "c" else None
         top = viz.top_view(lp.points, self.mesh.triangles, (name, values), d / "top.png", title=title,
-                           cmap=self.out["cmap"], clim=clim)
-        side = viz.side_view(lp.points, self.mesh.triangles, d / "side.png", title=title, cmap=self.out["cmap"])
+                           cmap=self.out.cmap, clim=clim)
+        side = viz.side_view(lp.points, self.mesh.triangles, d / "side.png", title=title, cmap=self.out.cmap)
         return [top, side]
 
 
@@ -869,8 +871,28 @@ def _picture_field(name, points, model, u, *, c=None, H=None, s=None, contractil
 
 # ----------------------------------------------------------------------------- static load stepping
 
+class LoadAndGrowth:
+    """The shell model seen by :func:`~femshell.solvers.newton.follow_load`: setting its load factor μ
+    also grows the shell to s = 1 + μ g (``set_factor``), and ``accept`` goes to ``on_accept``."""
+
+    def __init__(self, model, set_factor, on_accept):
+        self.model, self._set_factor, self.accept = model, set_factor, on_accept
+
+    @property
+    def load_factor(self):
+        return self.model.load_factor
+
+    @load_factor.setter
+    def load_factor(self, mu):
+        self._set_factor(mu)
+
+    def __getattr__(self, name):
+        return getattr(self.model, name)
+
+
 class StaticRunner(BaseRunner):
-    """Load factor and growth ramped together from 0 to 1 in ``steps`` increments, Newton at each."""
+    """Load factor μ and growth ramped together from 0 to 1 in ``steps`` increments: the equilibria along
+    μ by :func:`~femshell.solvers.newton.follow_load` (cut on failure, secant predictor across steps)."""
 
     kind = "static"
 
@@ -879,20 +901,19 @@ class StaticRunner(BaseRunner):
 
     def _setup(self):
         self.parts = shell_parts(self.scene, self.mesh)
-        so = self.scene["solver"]
-        self.n_steps = so["steps"]
+        so = self.scene.solver
+        self.n_steps = so.steps
         self.mu = 0.0
         self.k = 0
         self.u = self.parts.model.initial_unknowns()
         self.prev = None
         self.last = None
         self._set(0.0)
-        from ..solvers.linear import Refactorizer
-
+        self.problem = LoadAndGrowth(self.parts.model, self._set, self._accept)
         # one pair for every load step: the pattern's symbolic analysis is done once per run, not per step
-        factorizers = (Refactorizer(so["backend"]), Refactorizer(so["backend"]))
-        self.newton = dict(rtol=so["newton_rtol"] or 1e-8, max_iter=so["newton_max_iter"] or 60,
-                           backend=so["backend"], stable=so["stable"], factorizers=factorizers)
+        factorizers = (Refactorizer(so.backend), Refactorizer(so.backend))
+        self.newton = dict(rtol=so.newton_rtol or 1e-8, max_iter=so.newton_max_iter or 60,
+                           backend=so.backend, stable=so.stable, factorizers=factorizers)
 
     def settle(self):
         self._set(self.mu)
@@ -902,10 +923,10 @@ class StaticRunner(BaseRunner):
             f.free()
 
     def _set(self, mu):
-        gr = self.scene["growth"]
+        gr = self.scene.growth
         self.parts.model.load_factor = mu
-        if gr["law"] not in ("none", None):
-            self.parts.apply(stretch_field(gr, self.mesh, strain=mu * gr["strain"]))
+        if gr.law not in ("none", None):
+            self.parts.apply(stretch_field(gr, self.mesh, strain=mu * gr.strain))
 
     def _edge_moments(self):
         return [(i, ld) for i, ld in enumerate(self.parts.loads) if hasattr(ld, "update_branch")]
@@ -936,51 +957,36 @@ class StaticRunner(BaseRunner):
         return self.k >= self.n_steps
 
     def advance(self):
-        from ..solvers.newton import NewtonError, minimize, secant_start
-
-        model = self.parts.model
         target = (self.k + 1) / self.n_steps
-        step = target - self.mu
-        cuts = 0
-        iters = 0
-        max_cuts = self.scene["solver"]["max_cuts"]
-        while True:
-            trial = self.mu + step
-            self._set(trial)
-            start = secant_start(model, self.u, self.mu, trial, self.prev)
-            try:
-                res = minimize(model, start, log=None, **self.newton)
-                iters += res.iterations
-                if not (np.all(np.isfinite(res.u)) and math.isfinite(res.energy)):
-                    raise NewtonError("non-finite state")
-            except NewtonError as exc:
-                res_it = getattr(getattr(exc, "result", None), "iterations", 0) or 0
-                iters += res_it
-                cuts += 1
-                if cuts > max_cuts:
-                    self._set(self.mu)
-                    raise StepFailure(f"increment to factor {trial:.6g} failed after {max_cuts} cuts: {exc}") from None
-                step *= 0.5
-                if self.verbose:
-                    self.p.say(f"  factor {trial:.6g}: Newton failed ({exc}); increment cut to {step:.3g}")
-                continue
-            done = abs(trial - target) <= 1e-14
-            # the last increment completes the step: committed whole (an intermediate one is a state of
-            # its own, (u, mu) at the same k, from which a resume goes on to the target)
-            with committing() if done else contextlib.nullcontext():
-                self.prev, self.u, self.mu, self.last = (self.mu, self.u), res.u, target if done else trial, res
-                model.accept(self.u)
-                if done:
-                    self.k += 1
-                    self.newton_total += iters
-            if done:
-                break
-            step = target - self.mu
-        disp = np.linalg.norm(model.positions(self.u) - self.mesh.points, axis=1).max()
+        self._target, self._solves = target, []
+        try:
+            res, = follow_load(self.problem, self.u, [target], start=self.mu, previous=self.prev,
+                               max_cuts=self.scene.solver.max_cuts,
+                               on_solve=lambda iterations, converged: self._solves.append((iterations, converged)),
+                               log=self.p.say if self.verbose else None, **self.newton)
+        except NewtonError as exc:
+            raise StepFailure(f"increment to factor {target:.6g} failed: {exc}") from None
+        self.last = res
+        iters = sum(it for it, _ in self._solves)
+        cuts = sum(1 for _, converged in self._solves if not converged)
+        disp = np.linalg.norm(self.parts.model.positions(self.u) - self.mesh.points, axis=1).max()
         text = (f"step {self.k:4d}/{self.n_steps}  factor {self.mu:.4g}  newton {iters:2d}"
                 f"{f' cuts {cuts}' if cuts else ''}  energy {res.energy:.6g}  max |u| {disp:.4g}"
                 + ("" if res.stable is None else ("  stable" if res.stable else f"  UNSTABLE ({res.n_negative})")))
         return text, self.k / self.n_steps
+
+    def _accept(self, u):
+        """A converged increment of follow_load (``problem.accept``): the runner's state. The increment
+        reaching the step's target completes the step: committed whole (an intermediate one is a state
+        of its own, (u, mu) at the same k, from which a resume goes on to the target)."""
+        trial = self.parts.model.load_factor
+        done = abs(trial - self._target) <= 1e-14 * max(1.0, abs(self._target))
+        with committing():
+            self.prev, self.u, self.mu = (self.mu, self.u), u, self._target if done else trial
+            self.parts.model.accept(u)
+            if done:
+                self.k += 1
+                self.newton_total += sum(it for it, _ in self._solves)
 
     def series_time(self):
         return float(self.mu)
@@ -995,7 +1001,7 @@ class StaticRunner(BaseRunner):
     def frame(self):
         model = self.parts.model
         _, Hv = self.parts.mean_curvature(self.u)
-        pts, pd, cd = frame_fields(self.out["fields"], model=model, u=self.u, s=self.parts.s, H_vertex=Hv)
+        pts, pd, cd = frame_fields(self.out.fields, model=model, u=self.u, s=self.parts.s, H_vertex=Hv)
         return self.mu, pts, pd, cd
 
     def final_points(self):
@@ -1028,10 +1034,10 @@ class StaticRunner(BaseRunner):
         d = self.rd.path / "pictures"
         d.mkdir(exist_ok=True)
         _, Hv = self.parts.mean_curvature(self.u)
-        name, values = _picture_field(self.out["picture_field"], x, model, self.u, H=Hv, s=self.parts.s)
+        name, values = _picture_field(self.out.picture_field, x, model, self.u, H=Hv, s=self.parts.s)
         title = f"{self.scene.name}: factor {self.mu:.4g}"
-        top = viz.top_view(x, self.mesh.triangles, (name, values), d / "top.png", title=title, cmap=self.out["cmap"])
-        side = _side_picture(viz, self.mesh, x, (name, values), d / "side.png", title, self.out["cmap"])
+        top = viz.top_view(x, self.mesh.triangles, (name, values), d / "top.png", title=title, cmap=self.out.cmap)
+        side = _side_picture(viz, self.mesh, x, (name, values), d / "side.png", title, self.out.cmap)
         return [top, side]
 
 
@@ -1049,21 +1055,21 @@ class ContinuationRunner(BaseRunner):
         from ..solvers.continuation import GrowthParameter, LoadParameter
 
         sc = self.scene
-        so, gr = sc["solver"], sc["growth"]
+        so, gr = sc.solver, sc.growth
         self.parts = parts = shell_parts(sc, self.mesh)
         model = parts.model
-        self.param = so["parameter"]
-        h0 = sc["shell"]["thickness"]
-        self.start = continuation_start(so, gr)
+        self.param = so.parameter
+        h0 = sc.shell.thickness
+        self.start = continuation_start(so.parameter, so.start, gr.strain, gr.inner_radius)
         if self.param == "loads.factor":
-            if gr["law"] not in ("none", None):
+            if gr.law not in ("none", None):
                 parts.apply(stretch_field(gr, self.mesh))
             model.load_factor = self.start
         else:
             model.load_factor = 1.0
-        stop = so["stop"]
-        scale = so["parameter_scale"] or (abs(stop - self.start) if stop is not None else 1.0) or 1.0
-        length = so["length_scale"] or h0
+        stop = so.stop
+        scale = so.parameter_scale or (abs(stop - self.start) if stop is not None else 1.0) or 1.0
+        length = so.length_scale or h0
         if self.param == "loads.factor":
             self.problem = LoadParameter(model, length_scale=length, parameter_scale=scale)
         else:
@@ -1082,8 +1088,8 @@ class ContinuationRunner(BaseRunner):
         self.problem.set_parameter(self.start)
         flat = self.mesh.is_flat()
         self.flat = flat
-        self.free_body = not sc["boundary"]
-        self.r2 = gr.get("inner_radius") if gr["law"] == "inner_region" else None
+        self.free_body = not sc.boundary
+        self.r2 = gr.inner_radius if gr.law == "inner_region" else None
         # the flat mesh's largest distance from the axis: the circles about R2 must stay inside it
         self.r_mesh = float(np.hypot(self.mesh.points[:, 0], self.mesh.points[:, 1]).max())
         self.segments = []        # finished segments' rows (all branches)
@@ -1205,13 +1211,13 @@ class ContinuationRunner(BaseRunner):
         return self.phase == "done"
 
     def final_status(self):
-        so = self.scene["solver"]
+        so = self.scene.solver
         # a branch that ran out of steps before the stop value it was given is not a finished study
         short = [k for k, v in self.branch_status.items() if v["status"] == "max_steps" and self._stop(k) is not None]
         text = "; ".join(f"{k} branch: {v['message']}" for k, v in self.branch_status.items() if k not in short)
         if short:
             self.message = "; ".join(
-                f"{k} branch: stopped at solver.max_steps = {so['max_steps']} before its stop value {self._stop(k):g}"
+                f"{k} branch: stopped at solver.max_steps = {so.max_steps} before its stop value {self._stop(k):g}"
                 for k in short) + (": run again with a larger solver.max_steps (or a larger solver.ds) and "
                                    "--overwrite") + (f"; {text}" if text else "")
             return "max_steps_branch"
@@ -1222,7 +1228,7 @@ class ContinuationRunner(BaseRunner):
     def frame(self):
         model = self.parts.model
         _, Hv = self.parts.mean_curvature(self.u)
-        pts, pd, cd = frame_fields(self.out["fields"], model=model, u=self.u, s=self.parts.s, H_vertex=Hv)
+        pts, pd, cd = frame_fields(self.out.fields, model=model, u=self.u, s=self.parts.s, H_vertex=Hv)
         return float(self.step), pts, pd, cd
 
     # --- the loop: continuation() drives, the callback reports
@@ -1238,23 +1244,23 @@ class ContinuationRunner(BaseRunner):
                 return
 
     def _options(self, steps_done):
-        so = self.scene["solver"]
-        ds = so["ds"]
-        return dict(ds_min=so["ds_min"], ds_max=so["ds_max"] or 2 * ds, max_steps=max(so["max_steps"] - steps_done, 1),
-                    n_eigs=so["n_eigs"], record=self.record, detect=so["detect"], stop_at=tuple(so["stop_at"]),
-                    rtol=so["newton_rtol"] or 1e-8, backend=so["backend"],
-                    **({} if so["newton_max_iter"] is None else {"max_corrector_iterations": so["newton_max_iter"]}),
+        so = self.scene.solver
+        ds = so.ds
+        return dict(ds_min=so.ds_min, ds_max=so.ds_max or 2 * ds, max_steps=max(so.max_steps - steps_done, 1),
+                    n_eigs=so.n_eigs, record=self.record, detect=so.detect, stop_at=tuple(so.stop_at),
+                    rtol=so.newton_rtol or 1e-8, backend=so.backend,
+                    **({} if so.newton_max_iter is None else {"max_corrector_iterations": so.newton_max_iter}),
                     log=(lambda s: self.p.say(s)) if self.verbose else None)
 
     def _stop(self, label):
         """The stop value of a branch ("primary" or "switched"; None: no stop value, max_steps only)."""
-        so = self.scene["solver"]
-        return so["switch_stop"] if label == "switched" and so["switch_stop"] is not None else so["stop"]
+        so = self.scene.solver
+        return so.switch_stop if label == "switched" and so.switch_stop is not None else so.stop
 
     def _segment(self, primary):
         from ..solvers.continuation import Branch, ContinuationError, continuation, switch_branch
 
-        so = self.scene["solver"]
+        so = self.scene.solver
         label = self.cur_label
         steps_done = sum(1 for r in self.segments if r.get("branch") == label and not r.get("special")
                          and r.get("step", 0) > 0)
@@ -1289,7 +1295,7 @@ class ContinuationRunner(BaseRunner):
                     + (f"  wrinkles {int(row['wrinkles'])}" if "wrinkles" in row else "")
                     + (f"  passed {', '.join(sp.label for sp in new_sp)}" if new_sp else ""))
             # the branch ends at its stop value or at max_steps, whichever comes first
-            frac = (row["step"] + steps_done) / so["max_steps"]
+            frac = (row["step"] + steps_done) / so.max_steps
             if stop is not None and stop != self._seg_start:
                 frac = max(frac, (row["parameter"] - self._seg_start) / (stop - self._seg_start))
             frac = min(max(frac, 0.0), 1.0)
@@ -1308,7 +1314,7 @@ class ContinuationRunner(BaseRunner):
                 self._seg_start = self.start
                 # toward the stop value, which may lie below the start
                 direction = -1 if stop is not None and stop < self.start else 1
-                branch = continuation(self.problem, self.u, self.start, ds=so["ds"], lam_stop=stop, label=label,
+                branch = continuation(self.problem, self.u, self.start, ds=so.ds, lam_stop=stop, label=label,
                                       direction=direction, callback=callback, **opts)
             elif not resumed:
                 sp = self._switch_point()
@@ -1318,16 +1324,16 @@ class ContinuationRunner(BaseRunner):
                 self._seg_start = sp.parameter
                 self.p.say(f"branch switching at {sp.label} {self.param} = {sp.parameter:.8g} "
                            f"(multiplicity {sp.multiplicity})")
-                amp = so["switch_amplitude"] or so["ds"]
+                amp = so.switch_amplitude or so.ds
                 opts.pop("max_steps")
-                branch = switch_branch(self.problem, sp, amplitude=amp, ds=so["ds"], lam_stop=stop, label=label,
-                                       callback=callback, max_steps=so["max_steps"], **opts)
+                branch = switch_branch(self.problem, sp, amplitude=amp, ds=so.ds, lam_stop=stop, label=label,
+                                       callback=callback, max_steps=so.max_steps, **opts)
             else:
                 self._seg_start = self.lam
                 tu, tl = self.resume_tangent
                 self.resume_tangent = None
                 self.problem.set_parameter(self.lam)
-                branch = continuation(self.problem, self.u, self.lam, ds=so["ds"], lam_stop=stop, label=label,
+                branch = continuation(self.problem, self.u, self.lam, ds=so.ds, lam_stop=stop, label=label,
                                       callback=callback, initial_tangent=(tu, tl), **opts)
         except ContinuationError as exc:
             raise StepFailure(str(exc)) from None
@@ -1344,11 +1350,11 @@ class ContinuationRunner(BaseRunner):
         self.branch_status[label] = {"status": branch.status, "message": branch.message}
         if branch.status == "ds_min":
             raise StepFailure(f"{label} branch: {branch.message}")
-        if primary and so["switch_branch"] and self._switch_point() is not None:
+        if primary and so.switch_branch and self._switch_point() is not None:
             self.phase, self.cur_label = "switched", "switched"
             self.prev = None
         else:
-            if primary and so["switch_branch"]:
+            if primary and so.switch_branch:
                 self.message = "no branch point on the primary branch: nothing to switch to"
             self.phase = "done"
         self.checkpoint()
@@ -1450,10 +1456,10 @@ class ContinuationRunner(BaseRunner):
         d = self.rd.path / "pictures"
         d.mkdir(exist_ok=True)
         _, Hv = self.parts.mean_curvature(self.u)
-        name, values = _picture_field(self.out["picture_field"], x, model, self.u, H=Hv, s=self.parts.s)
+        name, values = _picture_field(self.out.picture_field, x, model, self.u, H=Hv, s=self.parts.s)
         title = f"{self.scene.name}: {self.param} = {self.lam:.4g}"
-        out = [viz.top_view(x, self.mesh.triangles, (name, values), d / "top.png", title=title, cmap=self.out["cmap"]),
-               _side_picture(viz, self.mesh, x, (name, values), d / "side.png", title, self.out["cmap"])]
+        out = [viz.top_view(x, self.mesh.triangles, (name, values), d / "top.png", title=title, cmap=self.out.cmap),
+               _side_picture(viz, self.mesh, x, (name, values), d / "side.png", title, self.out.cmap)]
         rows = [r for r in self.rows() if r.get("amplitude") is not None]
         sp = self._switch_point()
         if sp is not None and any(r.get("branch") == "switched" for r in rows):
@@ -1462,7 +1468,7 @@ class ContinuationRunner(BaseRunner):
             rows.insert(i, dict(self.record(sp.u), parameter=sp.parameter, stable=None, branch="switched",
                                 special=""))
         if rows:
-            scale = self.scene["solver"]["parameter_scale"]
+            scale = self.scene.solver.parameter_scale
             x = [r["parameter"] / (scale or 1.0) for r in rows]
             table = {"parameter": x, "amplitude": [r["amplitude"] for r in rows],
                      "stable": [r.get("stable") for r in rows], "branch": [r.get("branch") for r in rows],
@@ -1536,7 +1542,6 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         if not p.is_file():
             raise RunDirError(f"{out}: no {SCENE_FILE} to resume from; give the SCENE too")
         raw = parse_scene(p.read_text(encoding="utf-8"), str(p))
-        from .schema import apply_overrides
         raw = apply_overrides(raw, overrides, str(p), note=False)   # changes on resume go to setting_changes
         sc = validate(raw, name=raw.get("name") or Path(out).name, label=str(p), source=None, base_dir=Path(out))
     else:
@@ -1626,20 +1631,20 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
         if changed:
             raise RunDirError(f"{rd.path / CHECKPOINT} was made on {changed} (was its mesh file changed?): put the "
                               "run's mesh back, or start a new run with --overwrite or another --out")
-        # before 2026-11-28 the shell's edge unknowns were angles: a time run's state says so itself (its
-        # version) and is converted; a static or continuation state holds bare unknowns and is refused
+        # the shell's edge unknowns were once angles: a time run's state says so itself (its version) and is
+        # converted; a static or continuation state holds bare unknowns and is refused
         from ..shell.element import EDGE_UNKNOWN
 
         if resume_from[1].get("edge_unknown") != EDGE_UNKNOWN and resume_from[1].get("kind") != "time":
             raise RunDirError(f"{rd.path / CHECKPOINT} was written before femshell's shell took the tangent of the "
                               "mid-edge normal's angle as its edge unknown (2026-11-28), and its state cannot be read "
                               "as one: start a new run with --overwrite or another --out")
-    if sc["mesh"]["kind"] == "file":
+    if sc.mesh_kind == "file":
         from ..mesh import check_mesh
 
         for w in check_mesh(mesh).warnings:     # a sliver or a poor triangle the run may stumble on
             print(f"warning: mesh {mesh.name}: {w}", file=sys.stderr if quiet else stream)
-    progress = Progress(stream, interval=sc["output"]["progress_interval"], quiet=quiet)
+    progress = Progress(stream, interval=sc.output.progress_interval, quiet=quiet)
     # SIGTERM as Ctrl-C from here on: a run stopped while it starts still puts an earlier run back
     with interruptible():
         return _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose, changes)
@@ -1709,4 +1714,4 @@ def _extends(summary, sc):
         t = summary["final"]["t"]
     except (KeyError, TypeError):
         return False
-    return sc["solver"]["t_final"] > old_tf and summary.get("status") == "t_final" and t < sc["solver"]["t_final"]
+    return sc.solver.t_final > old_tf and summary.get("status") == "t_final" and t < sc.solver.t_final

@@ -512,7 +512,8 @@ def secant_start(problem, u, current, trial, previous):
     return start if np.isfinite(problem.energy(start)) else u
 
 
-def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, log=print, **newton_options):
+def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, log=print, previous=None,
+                on_solve=None, **newton_options):
     """Equilibria along increasing load factors, each warm-started from the previous one.
 
     ``u0`` is the equilibrium at load factor ``start`` (0: the unloaded state).
@@ -527,6 +528,9 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
     ``2**max_cuts + max_cuts + 1`` failed Newton solves.
     ``problem.accept(u)`` (if present) is called after each converged step;
     ``callback(factor, result)`` after each requested factor.
+    ``previous`` = (load factor, state): the converged state before ``u0``, for the secant
+    predictor of the first step (a path followed in several calls). ``on_solve(iterations,
+    converged)`` after every Newton solve, failed ones included.
     Returns the list of :class:`NewtonResult` at the requested factors.
     """
     u = np.array(u0, float)
@@ -550,7 +554,8 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
         backend = newton_options.get("backend", "auto")
         newton_options = {**newton_options, "factorizers": (Refactorizer(backend), Refactorizer(backend))}
     try:
-        previous = None  # (load factor, state) of the converged step before, for the secant predictor
+        # (load factor, state) of the converged step before, for the secant predictor
+        previous = None if previous is None else (float(previous[0]), np.asarray(previous[1], float))
         out = []
         for target in factors:
             interval = target - current
@@ -570,6 +575,8 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
                     if not isinstance(exc, NewtonError):
                         problem.load_factor = current     # an error of another kind: leave the last converged factor
                         raise
+                    if on_solve:
+                        on_solve(getattr(exc.result, "iterations", 0) or 0, False)
                     if abs(step) * 0.5 <= min_step:    # (<=: a step of 0, to a factor equal to the start, ends too)
                         problem.load_factor = current
                         raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed, and the step cannot be "
@@ -579,6 +586,8 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
                     if log:
                         log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
                     continue
+                if on_solve:
+                    on_solve(res.iterations, True)
                 previous = (current, u)
                 u, current, last = res.u, trial, res
                 if hasattr(problem, "accept"):
