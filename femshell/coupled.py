@@ -129,9 +129,11 @@ class CoupledError(RuntimeError):
 
 @dataclass(frozen=True)
 class MechanochemicalModel:
-    """Physical parameters of the mechanochemical shell (design.md 1.1–1.3, defaults of 1.5).
+    """Physical parameters of the mechanochemical shell (theory §1.1–1.3, defaults of §1.5).
 
-    Parameters (units of design.md section 3: lengths in cell sizes, time in 1/β)
+    Lengths are in cell sizes and times in 1/β (theory §3).
+
+    Parameters
     ----------
     nu, E : Poisson ratio in (−1, 0.5] and Young's modulus (> 0; only scales energies).
     h0 : rest thickness (length, > 0).
@@ -458,6 +460,8 @@ SOURCE_RULES = ("start", "extrapolated")
 class TimeStepping:
     """Controls of the time loop (times in 1/β).
 
+    Parameters
+    ----------
     t_final : end time. dt_initial, dt_min, dt_max : first, smallest and largest step.
     ds_max : largest allowed change of the stretch s in any element per step.
     grow : largest growth factor of dt from one step to the next; safety : factor on

@@ -472,6 +472,8 @@ class TimeSeriesWriter:
         without their ``.pvd`` cannot be resumed: ValueError, nothing deleted). Call
         :meth:`truncate_after` with the checkpoint time so frames written after the checkpoint disappear.
 
+    Notes
+    -----
     Each :meth:`write` writes its VTU atomically, then rewrites the .pvd atomically,
     so a killed run leaves a valid series (at worst an orphan VTU that the next
     write with that index replaces). Times must increase strictly (use a step

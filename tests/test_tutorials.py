@@ -1,17 +1,14 @@
-"""The tutorials in docs/tutorials/: every page shows only code its script runs, and every script runs.
+"""The gallery's examples (docs/examples/plot_*.py) run, and what they compute is right.
 
-Each tutorial is a page NAME.md and a script NAME.py. The scripts run here with ``--quick``
-(tiny meshes) in a temporary directory, in a subprocess with this Python, and their outputs
-are checked for existence and sane values. Quick runs measured on one core (2026-11-27, the
-kernels' compilation cached): buckling 35 s, mechanochemistry 41 s, convergence about as
-long (most of it imports and loading the compiled kernels in two or three processes).
-All three run in the CI selection (about 2.5 min together with the cores shared), so a
-tutorial that breaks is seen at once. The page/script consistency checks take under a second.
+Each example is a literate script that sphinx-gallery renders with its output; here each
+runs as a script, at its default (small) size, in a subprocess with this Python and a
+temporary --out, and its results.json is checked against theory or invariants. They run
+in the CI selection, so an example that breaks is seen at once; the docs test
+(tests/test_docs.py) builds the site running only the quickest of them.
 """
 
 import json
 import math
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -20,56 +17,26 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-TUTORIALS = ROOT / "docs" / "tutorials"
-NAMES = ("buckling", "mechanochemistry", "convergence")
-
-
-def code_blocks(page: Path, lang: str):
-    return re.findall(rf"^```{lang}\n(.*?)^```", page.read_text(encoding="utf-8"), flags=re.S | re.M)
+EXAMPLES = ROOT / "docs" / "examples"
+NAMES = ("buckling", "mechanochemistry", "convergence", "plate_pressure")
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_page_and_script_exist(name):
-    page, script = TUTORIALS / f"{name}.md", TUTORIALS / f"{name}.py"
-    assert page.exists() and script.exists()
-    text = page.read_text(encoding="utf-8")
-    assert f"docs/tutorials/{name}.py --quick" in text            # how to run it
-    src = script.read_text(encoding="utf-8")
-    assert '"--quick"' in src and '"--out"' in src and f'"tutorial-out/{name}"' in src
+def test_example_is_a_gallery_script(name):
+    """A title in the docstring (sphinx-gallery's page title), --full and --out options."""
+    src = (EXAMPLES / f"plot_{name}.py").read_text(encoding="utf-8")
+    doc = src.split('"""')[1].strip().splitlines()
+    assert len(doc) > 2 and set(doc[1]) == {"="} and len(doc[1]) >= len(doc[0]), doc[:2]
+    assert '"--full"' in src and '"--out"' in src and "# %%" in src
 
 
-@pytest.mark.parametrize("name", NAMES)
-def test_page_code_is_what_the_script_runs(name):
-    """Every ```python block of the page is a verbatim piece of the script."""
-    script = (TUTORIALS / f"{name}.py").read_text(encoding="utf-8")
-    blocks = code_blocks(TUTORIALS / f"{name}.md", "python")
-    assert blocks, f"{name}.md shows no code"
-    for block in blocks:
-        assert block in script, f"{name}.md shows code that {name}.py does not run:\n{block}"
+def test_every_example_is_tested():
+    assert sorted(p.stem for p in EXAMPLES.glob("plot_*.py")) == sorted(f"plot_{n}" for n in NAMES)
 
 
-def test_buckling_page_shows_the_embedded_scene():
-    from femshell.scene import embedded_scene_path
-
-    scene = embedded_scene_path("clamped-plate-buckling").read_text(encoding="utf-8")
-    blocks = code_blocks(TUTORIALS / "buckling.md", "toml")
-    assert blocks and all(b in scene for b in blocks)
-
-
-def test_mechanochemistry_page_shows_the_scene_list(capsys):
-    """The page's `femshell scenes` listing is what the command prints (descriptions say what is obtained)."""
-    from femshell.cli import main
-
-    main(["scenes"])
-    listing = capsys.readouterr().out
-    page = (TUTORIALS / "mechanochemistry.md").read_text(encoding="utf-8")
-    shown = page.split('femshell("femshell scenes")', 1)[1].split("```console\n", 1)[1].split("```", 1)[0]
-    assert shown == listing
-
-
-def run_tutorial(name, tmp_path, timeout=900):
+def run_example(name, tmp_path, timeout=900):
     out = tmp_path / name
-    r = subprocess.run([sys.executable, str(TUTORIALS / f"{name}.py"), "--quick", "--out", str(out)],
+    r = subprocess.run([sys.executable, str(EXAMPLES / f"plot_{name}.py"), "--out", str(out)],
                        cwd=tmp_path, capture_output=True, text=True, timeout=timeout)
     assert r.returncode == 0, (r.stdout[-3000:], r.stderr[-3000:])
     return out, json.loads((out / "results.json").read_text()), r.stdout
@@ -79,8 +46,8 @@ def finite(*values):
     return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
 
 
-def test_buckling_quick(tmp_path):
-    out, res, stdout = run_tutorial("buckling", tmp_path)
+def test_buckling(tmp_path):
+    out, res, stdout = run_example("buckling", tmp_path)
     for f in ("flat.csv", "buckled.csv", "bifurcation.png", "critical-mode.vtu", "scene/summary.json",
               "scene/series.pvd", "scene/branch.csv", "scene/pictures/bifurcation.png"):
         assert (out / f).exists(), f
@@ -96,10 +63,10 @@ def test_buckling_quick(tmp_path):
     assert res["scene_g_c"] == pytest.approx(res["g_c"], rel=1e-6)      # the scene finds the same point
 
 
-def test_mechanochemistry_quick(tmp_path):
+def test_mechanochemistry(tmp_path):
     import meshio
 
-    out, res, stdout = run_tutorial("mechanochemistry", tmp_path)
+    out, res, stdout = run_example("mechanochemistry", tmp_path)
     run = out / "run"
     for f in ("summary.json", "series.pvd", "scene.toml", "checkpoint.npz", "pictures/top.png", "movie.gif"):
         assert (run / f).exists(), f
@@ -114,8 +81,8 @@ def test_mechanochemistry_quick(tmp_path):
     assert res["api_status"] == "t_final" and res["api_steps"] > 0 and 0 < res["api_max_c"] <= 0.75 + 1e-9
 
 
-def test_convergence_quick(tmp_path):
-    out, res, stdout = run_tutorial("convergence", tmp_path)
+def test_convergence(tmp_path):
+    out, res, stdout = run_example("convergence", tmp_path)
     for f in ("convergence.png", "convergence.csv", "validate/clamped-plate-pressure.json", "accuracy.md",
               "images/convergence-clamped-plate-pressure.png"):
         assert (out / f).exists(), f
@@ -126,3 +93,16 @@ def test_convergence_quick(tmp_path):
     # three coarse meshes (the first is pre-asymptotic) the fitted order is 1.3 .. 3
     assert 1.3 < res["observed_order"] < 3.0, res["observed_order"]
     assert res["validate_passed"]
+
+
+def test_plate_pressure(tmp_path):
+    out, res, stdout = run_example("plate_pressure", tmp_path)
+    assert (out / "profile.png").exists() and (out / "load-deflection.png").exists()
+    # the linear profile at edge length 0.1: within a few per cent of Kirchhoff's w(r) everywhere
+    assert res["linear_max_deviation"] < 0.05
+    w0 = np.array(res["w0_over_t"])
+    factors = np.array(res["factors"])
+    # membrane stiffening: below the linear deflection (= the load factor), growing with the load,
+    # and within 15 % of Timoshenko's approximate large-deflection law up to w0 = 2 t
+    assert np.all(np.diff(w0) > 0) and np.all(w0 < factors)
+    assert np.all(np.abs(np.array(res["approximation_load_ratio"]) - 1) < 0.15)

@@ -14,7 +14,7 @@ Shallow-arch theory (Timoshenko & Gere sec. 7.5; Bažant & Cedolin sec. 2.8)
 w(x) upward, w = a sin(kx), k = π/L: with a sine load the symmetric equilibrium of
 EI (w − w0)'''' + P w'' = −q (P the uniform compression) is exactly a sine, so one mode
 is the whole symmetric solution. Between immovable supports ∫u' dx = 0, so the axial
-strain is uniform, ε = (1/2L) ∫ (w'² − w0'²) dx, N = EA ε, and
+strain is uniform, ε = (1/2L) ∫ (w'² − w0'²) dx, N = EA ε, and::
 
     U = (EI/2) ∫ (w'' − w0'')² dx + (EA L/2) ε²
       = EI k⁴ L (a − e)²/4 + EA k⁴ L (a² − e²)²/32,

@@ -6,20 +6,20 @@ Each scenario starts from the rest sphere with c = 0 except the Gaussian spot of
 stationary pattern. At the end the paper's measures (:func:`~femshell.analysis.find_spots`) are
 reported beside the paper's qualitative outcome:
 
-================  =======================================  ==========================================
-scenario          parameters (others: design.md 1.5)       the paper (section 3)
-================  =======================================  ==========================================
-spots             R = 30, h = 2, c* = 0.1, D = 0           near-uniform spots over the whole sphere
-ridges            c* = 0.2                                 ridge-like lines of bulges
-decay             c* = 0.35                                the perturbation decays
-single-bulge      h = 1, c* = 0.1                          a single bulge, no propagation
-propagation       h = 1, c* = 0.1, D = 0.5                 propagates (D > 0.4)
-large-spots       D = 1.5                                  larger spots, lower peak c
-small-sphere      R = 15                                   same spacing, fewer spots
-uniform-thickness h = 1, uniform thickness                 propagates at smaller h than volume-conserving
-icosahedral       Λmax/Λmin = 1.05, h = 4, c* = 0.05,      a few large spots, 12 at icosahedral positions
-                  w = 100
-================  =======================================  ==========================================
+=================  =======================================  ==========================================
+scenario           parameters (others: design.md 1.5)       the paper (section 3)
+=================  =======================================  ==========================================
+spots              R = 30, h = 2, c* = 0.1, D = 0           near-uniform spots over the whole sphere
+ridges             c* = 0.2                                 ridge-like lines of bulges
+decay              c* = 0.35                                the perturbation decays
+single-bulge       h = 1, c* = 0.1                          a single bulge, no propagation
+propagation        h = 1, c* = 0.1, D = 0.5                 propagates (D > 0.4)
+large-spots        D = 1.5                                  larger spots, lower peak c
+small-sphere       R = 15                                   same spacing, fewer spots
+uniform-thickness  h = 1, uniform thickness                 propagates at smaller h than volume-conserving
+icosahedral        Λmax/Λmin = 1.05, h = 4, c* = 0.05,      a few large spots, 12 at icosahedral positions
+                   w = 100
+=================  =======================================  ==========================================
 
 The paper's outcomes come from a spring network; they are reported, not toleranced. What must
 hold in every run (toleranced rows): c ≥ 0 and finite, no accepted step with a saddle (the
