@@ -98,6 +98,8 @@ def build(out: Path, gallery: str = "all") -> Path:
     rc = build_main(args)
     if rc:
         raise SystemExit(f"the documentation build failed (exit {rc}): see the warnings above")
+    # pictures that pages show through raw HTML (the sphere study's grids), which Sphinx does not copy
+    shutil.copytree(src / "images", out / "images", dirs_exist_ok=True)
     return out
 
 

@@ -323,7 +323,7 @@ def test_mid_edge_normal_cannot_turn_past_the_faces():
     """The edge unknown θ is the tangent of the turning angle: n_e = (m + θ t×m)/√(1 + θ²) is a unit
     vector turned by arctan θ, so n_e·m > 0 for every θ. An angle unknown (cos θ m + sin θ t×m) turns past
     ±π/2, where the normal reads a kink between its faces as curvature of the opposite sign (a spurious
-    lower-energy state Newton found on a seeded disk at θ = 3.16; docs/disk-crosscheck.md)."""
+    lower-energy state Newton found on a seeded disk at θ = 3.16; docs/studies/disk-crosscheck.md)."""
     from femshell.shell.element import turned_normal
     rng = np.random.default_rng(3)
     m = rng.standard_normal(3)

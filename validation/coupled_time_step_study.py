@@ -13,7 +13,7 @@ process also the element kernels' compilation, ~5 s: small against runs of 1-40 
 
 ``--source-rule extrapolated start`` runs the series with both of the chemistry's source rules
 (``TimeStepping.source_rule``; the first rule's smallest ds_max is the reference; committed for
-`spots` to t = 2 and `uniform-thickness` to t = 12 on 1500 vertices, in docs/accuracy-and-cost.md).
+`spots` to t = 2 and `uniform-thickness` to t = 12 on 1500 vertices, in docs/studies/accuracy-and-cost.md).
 ``--richardson`` (start first) compares instead with the first-order Richardson extrapolation
 from the held source's two smallest ds_max, a cross-check of that reference.
 
@@ -23,7 +23,7 @@ again reuses them, and a run stopped midway resumes from its checkpoint there. R
 
     .venv/bin/python validation/coupled_time_step_study.py --scenario propagation --n-vertices 1500 \\
         --t-final 6 --ds-max 0.2 0.1 0.05 0.025 0.0125 0.00625 \\
-        [--json validation/results/studies/coupled-time-step.json] [--doc docs/accuracy-and-cost.md]
+        [--json validation/results/studies/coupled-time-step.json] [--doc docs/studies/accuracy-and-cost.md]
 """
 
 from __future__ import annotations

@@ -29,7 +29,7 @@ size growing outwards); the table gives each.
         [--resolution 8 12 16] [--out validation/results/studies/disk-crosscheck.json]
 
 Writes the JSON (one record per case) and prints a markdown table; ``--doc FILE`` also
-rewrites the table between the generated markers of FILE (docs/disk-crosscheck.md).
+rewrites the table between the generated markers of FILE (docs/studies/disk-crosscheck.md).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@ r"""The disk test's n-branches on finer meshes: the resolved states of the R2 sw
 
 validation/disk_radius_sweep.py finds, on the full level's h = 0.25, R2 = 3 mesh (resolution 32), several
 stable states at one radius (4 and 6 wrinkles at R2 = 2, 5 and 6 at R2 = 3) whose energies differ by
-0.02-0.6 %, while two meshes differ by up to 4 % (docs/disk-crosscheck.md). Which count is the lowest is a
+0.02-0.6 %, while two meshes differ by up to 4 % (docs/studies/disk-crosscheck.md). Which count is the lowest is a
 result only if it survives refinement. This script takes, at each radius of ``--at``, the lowest resolved
 state of each count among the sweeps' checkpoints (and the case's own state at its R2) and carries it up a
 ladder of finer meshes of the same disk, ``--resolutions`` in increasing order: each rung starts from the
@@ -15,7 +15,7 @@ state's count (on the counting circle and inside the rim) and energy, and the co
     python validation/disk_mesh_refinement.py [--at 3] [--resolutions 40 48] [--h 0.25 --R2 3 --resolution 32]
         [--sweep-work validation-out/disk-radius-sweep] [--cases validation-out/disk-wrinkles-checkpoints]
         [--work validation-out/disk-mesh-refinement] [--out validation/results/studies/disk-mesh-refinement.json]
-        [--counts 5 6] [--doc docs/disk-crosscheck.md] [--table-only]
+        [--counts 5 6] [--doc docs/studies/disk-crosscheck.md] [--table-only]
 
 Each relaxed state is checkpointed (one file per radius, resolution and starting count); a second call skips
 those done, so two calls with different ``--at`` or ``--counts`` run at once (FEMSHELL_THREADS=1 each). Each

@@ -2,7 +2,7 @@ r"""The disk test's n-branches in the inner radius R2 at ε = 0.5: a quasi-stati
 
 disk-wrinkles (femshell/validation/disk_wrinkles.py) follows each disk in ε from 0 to 0.5 and counts the
 wrinkles of the stable state it reaches. Past the snap several stable states lie within 0.3 % in energy, and
-which one the ε path reaches is not a search for the lowest (docs/disk-crosscheck.md). This script follows the
+which one the ε path reaches is not a search for the lowest (docs/studies/disk-crosscheck.md). This script follows the
 states themselves in R2 at ε = 0.5, h fixed and R1 = 10 R2, on one mesh (:meth:`Disk.radius_problem`: the disk
 has no length of its own, so R2 is the thickness h R2₀/R2 of the case's mesh, no remeshing), by
 :func:`~femshell.validation.disk_wrinkles.sweep_radius`: stable Newton at each radius from the last state.
@@ -19,7 +19,7 @@ Sweeps (each resumable, one checkpoint per sweep):
     python validation/disk_radius_sweep.py [--sweeps down up] [--change 1] [--h 0.25 --R2 3 --resolution 32]
         [--to 1.25 4] [--step 0.0625] [--cases validation-out/disk-wrinkles-checkpoints]
         [--work validation-out/disk-radius-sweep] [--out validation/results/studies/disk-radius-sweep.json]
-        [--doc docs/disk-crosscheck.md] [--table-only]
+        [--doc docs/studies/disk-crosscheck.md] [--table-only]
 
 Two sweeps run at once as two calls (one core each: FEMSHELL_THREADS=1). Each call writes the JSON (and a PNG
 beside it: counts and energies against R2) from every sweep checkpoint present and prints the table (per

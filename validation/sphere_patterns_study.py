@@ -17,7 +17,7 @@ resumable from per-scenario checkpoints, and writes per scenario
   holds the same profile).
 
     python validation/sphere_patterns_study.py [--scenarios spots decay ...] [--scale 0.5]
-        [--n-vertices 2700] [--t-final 100] [--wall-time 900] [--doc docs/sphere-patterns.md]
+        [--n-vertices 2700] [--t-final 100] [--wall-time 900] [--doc docs/studies/sphere-patterns.md]
         [--membrane-law neo-hookean] [--thickness-mode uniform]
 
 ``--membrane-law`` and ``--thickness-mode`` run a scenario with another law than its own (the
@@ -137,7 +137,7 @@ def table(records: list) -> str:
                      f"{d['max_H']:.3g} | {'ok' if ok else 'VIOLATED'} |")
     lines.append("")
     for d in sorted(records, key=lambda d: (order.get(d["scenario"], 99), d["n_vertices"])):
-        im = f"images/sphere-patterns/{d['stem']}"
+        im = f"../images/sphere-patterns/{d['stem']}"   # the page is docs/studies/sphere-patterns.md
         if "profile" in d:
             lines.append(f'<img src="{im}-top.png" alt="{d["stem"]} top" width="30%"> '
                          f'<img src="{im}-side.png" alt="{d["stem"]} side" width="30%"> '

@@ -1,7 +1,7 @@
 """Which rim wavenumbers are stable states of the paper's disk? Starts seeded with one azimuthal wave.
 
 The paper counts 8 wrinkles on its disk at h = 0.25, R2 = 3, ε = 0.5; the broadband starts of
-`wrinkle_seeds_study.py` end at n = 2 … 6 there (docs/disk-crosscheck.md). Is a state with k
+`wrinkle_seeds_study.py` end at n = 2 … 6 there (docs/studies/disk-crosscheck.md). Is a state with k
 wrinkles a local minimum of the shell that those starts miss, or does the disk leave such a wave?
 Each sample starts from one wave cos(kφ + φ₀) of amplitude A·h on the rim band, on the small dome
 (:func:`femshell.validation.wrinkle_scaling.seed_shape`, phase φ₀ from ``--seed``), and raises ε to its
@@ -12,7 +12,7 @@ n = k.
 
 Each finished sample is written to the JSON at once; running the same command again skips the
 samples already there (stop it any time). The committed result
-(validation/results/studies/wrinkle-modes.json, table in docs/disk-crosscheck.md) is
+(validation/results/studies/wrinkle-modes.json, table in docs/studies/disk-crosscheck.md) is
 
     .venv/bin/python validation/wrinkle_modes_study.py --k 2 3 4 5 6 7 8 9 10 11 12 14 16 --amplitude 1.5
     .venv/bin/python validation/wrinkle_modes_study.py --k 8 --amplitude 0.3

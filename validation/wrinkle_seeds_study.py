@@ -1,7 +1,7 @@
 """How the rim wavenumber n of the paper's disk is distributed over random seeds, and λ against h from it.
 
 The `wrinkle-scaling` case measures one state per (h, ε): the lower-energy end of two starts. Its n
-moves by ±1-2 with the start, the mesh and round-off (docs/disk-crosscheck.md), so one sample per h
+moves by ±1-2 with the start, the mesh and round-off (docs/studies/disk-crosscheck.md), so one sample per h
 cannot give an exponent. This study samples: per (h, ε), the broadband start of
 :func:`femshell.validation.wrinkle_scaling.seeded_state` with the wave phases of seeds 1 … K (everything
 else as in the case). Per sample: n, rim amplitude, energy, negative eigenvalues. Per h: the values
