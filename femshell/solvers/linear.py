@@ -96,12 +96,9 @@ PARDISO_PERTURBATION_EXPONENT = 13
 PROBE_TOL = 1e-8
 #: PARDISO runs single-threaded below this many stored (upper-triangle) non-zeros and
 #: with all of MKL's threads above (only with a threaded MKL layer: femshell selects the
-#: sequential one unless MKL_THREADING_LAYER is set, see _mkl_environment). Measured on 2 cores shared
-#: with other jobs (load 8–10): one thread was faster for factorisations up to 10k vertices
-#: of a shell-like matrix (1.5 vs 1.8 s), and a chemistry-sized matrix (25k unknowns, 1-ring)
-#: took 0.2–0.4 s for factorise + refactorise + 10 solves on one thread against 1.5–1.9 s on
-#: two (idle OpenMP threads spin and compete). Idle, a 25k-vertex shell Hessian (150k
-#: unknowns, 4.2M non-zeros) refactorises in 1.6 s on two threads against 3.0 s on one.
+#: sequential one unless MKL_THREADING_LAYER is set, see _mkl_environment). Below it, idle
+#: OpenMP threads spin and compete on a shared machine; above it (a 25k-vertex shell
+#: Hessian, 4.2M non-zeros), two threads refactorise about twice as fast as one.
 PARALLEL_MIN_NNZ = 2_000_000
 #: dense fall-back limit for the inertia when SuperLU had to leave the diagonal
 DENSE_INERTIA_LIMIT = 2000
@@ -788,13 +785,13 @@ class Refactorizer:
 
     Newton iterations, and the Newton solves of a time or load stepping, factorise Hessians
     that change values but never pattern. A Refactorizer keeps its factorisations between
-    calls, so PARDISO's symbolic analysis (ordering: 45–60 % of a first factorisation of a
-    shell Hessian at 60k–150k unknowns, measured) is done once per pattern, not once per solve.
+    calls, so PARDISO's symbolic analysis (ordering: about half of a first factorisation of
+    a shell Hessian) is done once per pattern, not once per solve.
 
     With PARDISO it also tries Cholesky (``kind="spd"``) before LDLᵀ: a Cholesky that
     succeeds proves the inertia (n, 0, 0), which is all a stable equilibrium needs, and
     costs less than the symmetric-indefinite factorisation with its pivoting, scaling and
-    matching (0.85 against 1.4 s for a shell Hessian with 60k unknowns, measured). A matrix
+    matching (about 60 % of its time on a shell Hessian). A matrix
     that is not positive definite (or singular) makes the Cholesky fail and is factorised
     by LDLᵀ, which then gives the full inertia; after such a failure the next matrices go
     straight to LDLᵀ until one is positive definite again, so an indefinite stretch pays

@@ -116,9 +116,8 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         Give up (:class:`NewtonError`, "stalled") when over the last ``stall`` iterations the
         residual has not halved and the energy has fallen by less than 1e-7 of its size: Newton
         is then creeping with shifted steps about a near-singular Hessian and would use all of
-        ``max_iter`` (measured: 40 iterations, 378 s at 25 000 vertices, the energy falling by
-        ~1e-9 of itself per iteration, residual 0.1–1.6 against a tolerance of 1e-7). A caller that can
-        cut its step (a time stepping) gains from stopping early; None: never.
+        ``max_iter``. A caller that can cut its step (a time stepping) gains from stopping
+        early; None: never.
     """
     u = check_unknowns(problem, u0)
     max_iter, quasi_newton = integer("max_iter", max_iter, 0), integer("quasi_newton", quasi_newton, 0)
@@ -140,19 +139,7 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     times["assembly"] += time.perf_counter() - t0
     if not (np.isfinite(e) and np.all(np.isfinite(g))):
         raise NewtonError("energy or gradient is not finite at the starting point")
-    scale_from_start = False
-    if residual_scale is None:
-        # the applied load sets the scale (at load factor 0, the unit load: the start may already be
-        # the equilibrium, to round-off); without loads (growth), the initial imbalance does
-        if hasattr(problem, "load_gradient") and getattr(problem, "loads", None):
-            with np.errstate(over="ignore"):     # an overflowing load is named below
-                residual_scale = (abs(problem.load_factor) or 1.0) * np.linalg.norm(problem.load_gradient(u))
-        else:
-            residual_scale = np.linalg.norm(g)
-            scale_from_start = True
-    if not np.isfinite(residual_scale):
-        raise NewtonError(f"the residual scale is not finite ({residual_scale}): the applied load overflows float64")
-    residual_scale = max(residual_scale, 1e-300)
+    residual_scale, scale_from_start = _residual_scale(problem, u, g, residual_scale)
     own = factorizers is None
     if own:
         factorizers = (Refactorizer(backend), Refactorizer(backend))
@@ -178,6 +165,25 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         if own:
             for f in factorizers:
                 f.free()
+
+
+def _residual_scale(problem, u, g, residual_scale):
+    """(scale of the convergence test, whether it is the start's imbalance).
+
+    The given ``residual_scale``; else the applied load |λ ∂W/∂u| (at λ = 0 the unit load: the
+    start may already be the equilibrium, to round-off); without loads (growth), |∇Π(u0)|.
+    """
+    scale_from_start = False
+    if residual_scale is None:
+        if hasattr(problem, "load_gradient") and getattr(problem, "loads", None):
+            with np.errstate(over="ignore"):     # an overflowing load is named below
+                residual_scale = (abs(problem.load_factor) or 1.0) * np.linalg.norm(problem.load_gradient(u))
+        else:
+            residual_scale = np.linalg.norm(g)
+            scale_from_start = True
+    if not np.isfinite(residual_scale):
+        raise NewtonError(f"the residual scale is not finite ({residual_scale}): the applied load overflows float64")
+    return max(residual_scale, 1e-300), scale_from_start
 
 
 def _explain(problem, exc: NewtonError):
@@ -233,13 +239,6 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
         if scale_from_start:    # a start at an exact equilibrium (a saddle) had an imbalance of round-off
             residual_scale = max(residual_scale, float(np.linalg.norm(g)))
 
-    def is_saddle(K, n_neg) -> bool:
-        """K has a negative eigenvalue (counted from the inertia, else from the smallest eigenvalue)."""
-        if n_neg is not None:
-            return n_neg > 0
-        lam, _ = smallest_eigenvalues(K, k=1)
-        return bool(lam[0] < 0)
-
     roundoff_floor = False
     escaped = False          # the last thing done was a step off a saddle: its residual is not yet tested
     tau = None
@@ -262,7 +261,7 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
             if res <= max(rtol * residual_scale + atol, floor):
                 if not stable or n_neg == 0:
                     break
-                if not is_saddle(K, n_neg):       # the inertia unknown: the smallest eigenvalue is >= 0
+                if not _is_saddle(K, n_neg):       # the inertia unknown: the smallest eigenvalue is >= 0
                     n_neg = 0
                     break
                 leave_saddle(it, res)
@@ -274,26 +273,13 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                 raise NewtonError(f"Newton stalled at iteration {it}: |r| = {res:.3e} did not halve and the energy "
                                   f"fell by less than 1e-7 of it over the last {stall} iterations", _result(
                                       u, False, it, e, res, residual_scale, n_neg, history, times), stalled=True)
-            t = time.perf_counter()
-            d = -fac.solve(g)
-            times["solve"] += time.perf_counter() - t
-            ok = False
-            # with negative curvature the plain Newton step is still taken when it lowers the
-            # energy (a compressed flat sheet relaxes in plane this way); otherwise shift
-            if not n_neg or g @ d < -1e-8 * np.linalg.norm(g) * np.linalg.norm(d):
-                u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
-            if not ok and n_neg:
-                # start near the last shift that worked: saves most of the trial factorisations
-                shifted, tau = _shift_to_positive(K, shifted_factors, times, max(1e-8, tau / 16) if tau else 1e-6)
-                if log:
-                    log(f"    newton: Hessian has {n_neg} negative eigenvalues; shifted by {tau:.2e}")
-                d = -shifted.solve(g)
-                u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
+            u, e, g, ok, d, tau = _descend(problem, u, e, g, K, fac, n_neg, tau, shifted_factors, max_step, times,
+                                           log)
             if not ok:
                 # no step lowers Π when the predicted decrease is below what float64 can resolve
                 # in Π: the residual has reached its round-off floor, which is as converged as it gets
                 if abs(g @ d) <= 1e-13 * max(abs(e), abs(e_start), 1e-300):
-                    if stable and is_saddle(K, n_neg):
+                    if stable and _is_saddle(K, n_neg):
                         # a saddle at the round-off floor (an equilibrium by symmetry, as a flat plate
                         # grown past buckling): leave it as a converged saddle is left
                         leave_saddle(it, res)
@@ -323,6 +309,36 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
         raise NewtonError(f"Newton did not converge in {max_iter} iterations: |r| = {res:.3e} > "
                           f"{rtol * residual_scale + atol:.3e}", out)
     return out
+
+
+def _is_saddle(K, n_neg) -> bool:
+    """K has a negative eigenvalue (counted from the inertia, else from the smallest eigenvalue)."""
+    if n_neg is not None:
+        return n_neg > 0
+    lam, _ = smallest_eigenvalues(K, k=1)
+    return bool(lam[0] < 0)
+
+
+def _descend(problem, u, e, g, K, fac, n_neg, tau, shifted_factors, max_step, times, log):
+    """One step from u: Newton's d = −K⁻¹g with a line search, or the shifted (K + τD)⁻¹ step.
+
+    With negative curvature the plain Newton step is still taken when it lowers Π (a compressed
+    flat sheet relaxes in plane this way); otherwise K is shifted, τ starting near the last
+    shift that worked. Returns (u, e, g, ok, d, tau); ``ok`` False: no step lowered Π.
+    """
+    t = time.perf_counter()
+    d = -fac.solve(g)
+    times["solve"] += time.perf_counter() - t
+    ok = False
+    if not n_neg or g @ d < -1e-8 * np.linalg.norm(g) * np.linalg.norm(d):
+        u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
+    if not ok and n_neg:
+        shifted, tau = _shift_to_positive(K, shifted_factors, times, max(1e-8, tau / 16) if tau else 1e-6)
+        if log:
+            log(f"    newton: Hessian has {n_neg} negative eigenvalues; shifted by {tau:.2e}")
+        d = -shifted.solve(g)
+        u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
+    return u, e, g, ok, d, tau
 
 
 def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, memory=8, stall=4, max_step=None):
@@ -412,11 +428,7 @@ def _shift_to_positive(K, factorizer, times, tau_start=1e-6):
     """Factorise K + tau D with a tau (growing by 4 from ``tau_start``) that makes it positive definite.
 
     Each trial is a Cholesky attempt only (:meth:`Refactorizer.positive_definite`): the
-    inertia of a failed trial is not needed. Through the Refactorizer's call, a failed first
-    trial was followed by an LDLᵀ (analysed afresh) and every later trial was an LDLᵀ:
-    measured on a 25 000-vertex sphere's Hessian (150 030 unknowns, one thread), an LDLᵀ
-    costs 9.9 s (14.9 s analysed afresh) where a failing Cholesky costs 4–5 s, and a search of
-    seven trials took about 85 s that way against 41 s now.
+    inertia of a failed trial is not needed, and a failing Cholesky costs about half an LDLᵀ.
     """
     d = K.diagonal()
     D = np.abs(d)
@@ -540,64 +552,16 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
         raise ValueError(f"load factors and start must be finite, got start {start} and factors {factors}")
     # 2**-50 of an interval is about float resolution: more cuts would only repeat the same factor
     max_cuts = integer("max_cuts", max_cuts, 0, "an integer in [0, 50]", hi=50)
-    last = None  # the last converged NewtonResult, handed back with a failure
-
-    def last_converged():
-        """The last converged result; before any, u0 described as it is."""
-        if last is not None:
-            return last
-        g = problem.gradient(u)
-        return _result(u, False, 0, problem.energy(u), float(np.linalg.norm(g)), 1.0, None, [], {})
-
+    # (load factor, state) of the converged step before, for the secant predictor
+    path = _LoadPath(u, current, None if previous is None else (float(previous[0]), np.asarray(previous[1], float)))
     own = newton_options.get("factorizers") is None
     if own:     # one pair for all the steps: the pattern's symbolic analysis is done once, not per solve
         backend = newton_options.get("backend", "auto")
         newton_options = {**newton_options, "factorizers": (Refactorizer(backend), Refactorizer(backend))}
     try:
-        # (load factor, state) of the converged step before, for the secant predictor
-        previous = None if previous is None else (float(previous[0]), np.asarray(previous[1], float))
         out = []
         for target in factors:
-            interval = target - current
-            min_step = abs(interval) * 0.5 ** max_cuts * (1 - 1e-12)
-            step = interval
-            while True:
-                trial = current + step
-                if step != 0 and trial == current:
-                    problem.load_factor = current
-                    raise NewtonError(f"load step from {current:.17g} towards {target:.6g} is below the float resolution "
-                                      f"there (step {step:.3g}): it cannot be cut further", last_converged())
-                problem.load_factor = trial
-                start = secant_start(problem, u, current, trial, previous)
-                try:
-                    res = minimize(problem, start, log=None, **newton_options)
-                except BaseException as exc:
-                    if not isinstance(exc, NewtonError):
-                        problem.load_factor = current     # an error of another kind: leave the last converged factor
-                        raise
-                    if on_solve:
-                        on_solve(getattr(exc.result, "iterations", 0) or 0, False)
-                    if abs(step) * 0.5 <= min_step:    # (<=: a step of 0, to a factor equal to the start, ends too)
-                        problem.load_factor = current
-                        raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed, and the step cannot be "
-                                          f"cut further (max_cuts = {max_cuts}: not below 2**-{max_cuts} of the interval "
-                                          f"to {target:.6g}; last converged load factor {current:.6g}): {exc}", last_converged())
-                    step *= 0.5
-                    if log:
-                        log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
-                    continue
-                if on_solve:
-                    on_solve(res.iterations, True)
-                previous = (current, u)
-                u, current, last = res.u, trial, res
-                if hasattr(problem, "accept"):
-                    problem.accept(u)
-                if abs(current - target) <= 1e-14 * max(1.0, abs(target)):
-                    break
-                # a converged step earns one doubling back, not the whole remaining interval at once: a
-                # stretch that needs many small steps would otherwise pay a failed solve for every one
-                remaining = target - current
-                step = remaining if abs(2.0 * step) >= abs(remaining) else 2.0 * step
+            res = _advance_load(problem, path, target, max_cuts, newton_options, log, on_solve)
             if log:
                 log(f"  load factor {target:.6g}: {res.summary()}")
             if callback:
@@ -608,3 +572,66 @@ def follow_load(problem, u0, factors, *, start=0.0, max_cuts=8, callback=None, l
         if own:
             for f in newton_options["factorizers"]:
                 f.free()
+
+
+@dataclass
+class _LoadPath:
+    """Where :func:`follow_load` is: the last converged state u at load factor ``current``."""
+
+    u: np.ndarray
+    current: float
+    previous: tuple | None = None      # (load factor, state) of the converged step before, for the secant
+    last: NewtonResult | None = None   # the last converged result, handed back with a failure
+
+    def last_converged(self, problem):
+        """The last converged result; before any, u0 described as it is."""
+        if self.last is not None:
+            return self.last
+        g = problem.gradient(self.u)
+        return _result(self.u, False, 0, problem.energy(self.u), float(np.linalg.norm(g)), 1.0, None, [], {})
+
+
+def _advance_load(problem, path, target, max_cuts, newton_options, log, on_solve):
+    """Converged steps from ``path.current`` to ``target``, halving a failed step, doubling after success."""
+    interval = target - path.current
+    min_step = abs(interval) * 0.5 ** max_cuts * (1 - 1e-12)
+    step = interval
+    while True:
+        current = path.current
+        trial = current + step
+        if step != 0 and trial == current:
+            problem.load_factor = current
+            raise NewtonError(f"load step from {current:.17g} towards {target:.6g} is below the float resolution "
+                              f"there (step {step:.3g}): it cannot be cut further", path.last_converged(problem))
+        problem.load_factor = trial
+        start = secant_start(problem, path.u, current, trial, path.previous)
+        try:
+            res = minimize(problem, start, log=None, **newton_options)
+        except BaseException as exc:
+            if not isinstance(exc, NewtonError):
+                problem.load_factor = current     # an error of another kind: leave the last converged factor
+                raise
+            if on_solve:
+                on_solve(getattr(exc.result, "iterations", 0) or 0, False)
+            if abs(step) * 0.5 <= min_step:    # (<=: a step of 0, to a factor equal to the start, ends too)
+                problem.load_factor = current
+                raise NewtonError(f"load step from {current:.6g} to {trial:.6g} failed, and the step cannot be "
+                                  f"cut further (max_cuts = {max_cuts}: not below 2**-{max_cuts} of the interval "
+                                  f"to {target:.6g}; last converged load factor {current:.6g}): {exc}",
+                                  path.last_converged(problem))
+            step *= 0.5
+            if log:
+                log(f"  load factor {trial:.6g}: Newton failed, step cut to {step:.3g}")
+            continue
+        if on_solve:
+            on_solve(res.iterations, True)
+        path.previous = (current, path.u)
+        path.u, path.current, path.last = res.u, trial, res
+        if hasattr(problem, "accept"):
+            problem.accept(path.u)
+        if abs(path.current - target) <= 1e-14 * max(1.0, abs(target)):
+            return res
+        # a converged step earns one doubling back, not the whole remaining interval at once: a
+        # stretch that needs many small steps would otherwise pay a failed solve for every one
+        remaining = target - path.current
+        step = remaining if abs(2.0 * step) >= abs(remaining) else 2.0 * step

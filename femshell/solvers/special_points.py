@@ -222,8 +222,8 @@ class _Context:
         located = 0
         while (up and j < nb) or (not up and j >= nb):
             if located == MAX_CROSSINGS_PER_STEP:
-                # each location costs several factorisations: 175 crossings in one step took minutes
-                # each without a word; the first ones are where stability is lost
+                # each location costs several factorisations; the first crossings are where
+                # stability is lost
                 rest = (nb - j) if up else (j - nb + 1)
                 out.append(self._unlocated("branch", A, Pb, s_A, self.eng.dot(A.t_u, A.t_lam, Pb.u - A.u,
                                                                                  Pb.lam - A.lam), step,
