@@ -18,7 +18,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "docs" / "examples"
-NAMES = ("buckling", "mechanochemistry", "convergence", "plate_pressure")
+NAMES = ("buckling", "mechanochemistry", "convergence", "plate_pressure", "sphere_spot")
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -106,3 +106,12 @@ def test_plate_pressure(tmp_path):
     # and within 15 % of Timoshenko's approximate large-deflection law up to w0 = 2 t
     assert np.all(np.diff(w0) > 0) and np.all(w0 < factors)
     assert np.all(np.abs(np.array(res["approximation_load_ratio"]) - 1) < 0.15)
+
+
+def test_sphere_spot(tmp_path):
+    out, res, stdout = run_example("sphere_spot", tmp_path)
+    assert (out / "top.png").exists() and (out / "profile.png").exists()
+    assert res["status"] == "t_final" and res["steps"] > 0
+    # the seeded spot sustains itself as one outward bulge; c stays in [0, w Hs / beta]
+    assert res["n_spots"] == 1 and res["max_height"] > 0
+    assert 0 <= res["min_c"] and 0 < res["max_c"] <= res["c_saturation"] + 1e-9
