@@ -128,35 +128,36 @@ def test_a_collected_pardiso_factor_is_freed_at_once_or_in_a_run_at_the_next_fac
     import gc
 
     from femshell._interrupts import interruptible
-    from femshell.solvers import linear
+    from femshell.solvers import pardiso
 
     gc.collect()                                  # factors left by earlier tests in this process: freed now,
-    linear._free_collected()                      # not inside the counts below
+    pardiso._free_collected()                      # not inside the counts below
     freed = []
-    free = linear._free_pardiso
-    monkeypatch.setattr(linear, "_free_pardiso", lambda s: (freed.append(id(s)), free(s)))
+    free = pardiso._free_pardiso
+    monkeypatch.setattr(pardiso, "_free_pardiso", lambda s: (freed.append(id(s)), free(s)))
     A = laplacian_2d(30)
     b = np.ones(A.shape[0])
     f = factorize(A, "spd", "pardiso")
     handle = id(f._impl.solver)
     del f                                         # outside a run: freed at once
-    assert freed == [handle] and linear._COLLECTED == []
+    assert freed == [handle] and pardiso._COLLECTED == []
     with interruptible():
         f = factorize(A, "spd", "pardiso")
         handle = id(f._impl.solver)
         del f
-        assert [id(s) for s in linear._COLLECTED] == [handle] and freed == [freed[0]]
+        assert [id(s) for s in pardiso._COLLECTED] == [handle] and freed == [freed[0]]
         g = factorize(A, "spd", "pardiso")        # the next factorisation frees it
-        assert linear._COLLECTED == [] and freed[-1] == handle
+        assert pardiso._COLLECTED == [] and freed[-1] == handle
         assert rel_residual(A, g.solve(b), b) < 1e-12
         g.free()                                  # an explicit free frees at once
-        assert linear._COLLECTED == [] and len(freed) == 3
+        assert pardiso._COLLECTED == [] and len(freed) == 3
 
 
 # Run in a child process: MKL reads MKL_THREADING_LAYER once, when it is loaded.
 _THREADED_CHILD = """
 import numpy as np, scipy.sparse as sp
-from femshell.solvers.linear import PARALLEL_MIN_NNZ, Refactorizer, _mkl_threads
+from femshell.solvers.linear import Refactorizer
+from femshell.solvers.pardiso import PARALLEL_MIN_NNZ, _mkl_threads
 m = 160
 T = sp.diags([np.full(m - 1, -1.0), np.full(m, 4.0), np.full(m - 1, -1.0)], [-1, 0, 1])
 S = sp.diags([np.full(m - 1, -1.0), np.full(m - 1, -1.0)], [-1, 1])

@@ -116,7 +116,7 @@ def bench(n_target, superlu_max, rows):
               f"  solve {t_solve:6.3f} s  residual {res:.1e}  inertia {fac.inertia}")
 
     # the symmetry check costs one sparse transpose: time it separately
-    from femshell.solvers.linear import _canonical_csr, _check_values
+    from femshell.solvers.sparse_matrix import _canonical_csr, _check_values
 
     _, t_check = timed(_check_values, _canonical_csr(K), True)
     print(f"  input checks (finite, zero rows, symmetry): {t_check:.2f} s")
