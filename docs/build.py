@@ -33,7 +33,7 @@ def _fmt(v, spec=".4g"):
     return "" if v is None else (f"{v:{spec}}" if isinstance(v, float) else str(v))
 
 
-def validation_report(results: Path = ROOT / "validation" / "results", rows_shown: int = 8) -> str:
+def validation_report(results: Path = ROOT / "validation" / "results", rows_shown: int = 4) -> str:
     """The validation report (Markdown) from the full-level JSON in ``results``: per case its
     reference, verdict, plot and its last ``rows_shown`` rows with a tolerance (the finest meshes)."""
     from femshell.validation.framework import verdict
@@ -50,8 +50,8 @@ def validation_report(results: Path = ROOT / "validation" / "results", rows_show
     for f in files:
         doc = json.loads(f.read_text())
         head, _, rest = verdict(doc["rows"]).partition(" (")
-        lines += [f"## {doc['case']}: {head}", "", f"**Reference.** {doc['source'].replace('design.md ', 'theory §')}", "",
-                  f"**Verdict.** {head} ({rest}", ""]
+        lines += [f"## {doc['case']}: {head}", "",
+                  f"**Verdict.** {head} ({rest}. **Reference.** {doc['source'].replace('design.md ', 'theory §')}", ""]
         png = f.with_suffix(".png")
         if png.exists():
             lines += [f"![{doc['case']}](../validation/results/{png.name})", ""]
@@ -63,8 +63,9 @@ def validation_report(results: Path = ROOT / "validation" / "results", rows_show
                          f"{_fmt(r['rel_error'], '.2e')} | {_fmt(r['tolerance'], '.2g')} | "
                          f"{'' if r['passed'] is None else ('yes' if r['passed'] else 'NO')} | "
                          f"{r['n_vertices'] or ''} |")
-        if len(checked) > rows_shown:
-            lines.append(f"\n{len(doc['rows']) - rows_shown} more rows in `validation/results/{f.name}`.")
+        shown = min(rows_shown, len(checked))
+        if len(doc["rows"]) > shown:
+            lines.append(f"\n{len(doc['rows']) - shown} more rows in `validation/results/{f.name}`.")
         lines.append("")
     return "\n".join(lines) + "\n"
 

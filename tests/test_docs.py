@@ -15,7 +15,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 #: the pages a newcomer reads first, each under ~300 lines
-FIRST_PAGES = ["index.md", "getting-started.md", "theory.md", "paper.md", "accuracy-and-cost.md",
+FIRST_PAGES = ["index.md", "getting-started.md", "theory.md", "paper.md", "accuracy-and-cost.md", "validation-report.md",
                "guide/run-a-scene.md", "guide/write-a-scene.md", "guide/python-api.md",
                "guide/continuation.md", "guide/convergence.md"]
 
@@ -27,7 +27,7 @@ def test_docs_build(tmp_path):
                        capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, (r.stdout[-3000:], r.stderr[-5000:])
     assert "WARNING" not in r.stderr and "ERROR" not in r.stderr, r.stderr[-5000:]
-    for page in FIRST_PAGES + ["validation-report.md", "studies/index.md", "studies/disk-crosscheck.md",
+    for page in FIRST_PAGES + ["studies/index.md", "studies/benchmarks.md", "studies/disk-crosscheck.md",
                                "studies/sphere-patterns.md", "studies/accuracy-and-cost.md"]:
         assert (tmp_path / page.replace(".md", ".html")).exists(), page
     for module in ("mesh", "shell", "solvers", "geometry", "growth", "chemistry", "coupled", "scene"):
