@@ -16,9 +16,10 @@ import copy
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 
-__all__ = ["Spec", "key", "specs", "Scene", "SceneConfig", "MESH_CONFIGS", "SOLVER_CONFIGS", "BOUNDARY_TYPES", "LOAD_TYPES",
-           "GROWTH_LAWS", "MaterialConfig", "ShellConfig", "GrowthConfig", "ChemistryConfig", "InitialConfig",
-           "OutputConfig", "StaticSolver", "ContinuationSolver", "TimeSolver", "BoundaryConfig", "LoadConfig"]
+__all__ = ["Spec", "key", "specs", "Scene", "SceneConfig", "MESH_CONFIGS", "SOLVER_CONFIGS", "BOUNDARY_TYPES",
+           "LOAD_TYPES", "GROWTH_LAWS", "MaterialConfig", "ShellConfig", "GrowthConfig", "ChemistryConfig",
+           "InitialConfig", "OutputConfig", "StaticSolver", "ContinuationSolver", "TimeSolver", "BoundaryConfig",
+           "LoadConfig"]
 
 F, I, B, S = "float", "int", "bool", "str"
 POS = dict(lo=0.0, lo_open=True)
@@ -458,7 +459,8 @@ class LoadConfig:
     point: tuple | None = key("vec3", "position; the force acts on the nearest vertex")
     curve: str | None = key(S, "boundary curve", required=True,
                             docs={"point_force": "or every vertex of this boundary curve"})
-    force: tuple | None = key("vec3", "force per unit rest length", required=True, docs={"point_force": "force per vertex"})
+    force: tuple | None = key("vec3", "force per unit rest length", required=True,
+                              docs={"point_force": "force per vertex"})
     traction: tuple | None = key("vec3", "force per unit rest area", required=True)
     pressure: float | None = key(F, "pressure along the rest normals", required=True,
                                  docs={"follower_pressure": "pressure along the current normals"})
@@ -474,7 +476,8 @@ def _frozen(value):
 
 def _make(cls, section: dict):
     """``cls`` of a validated section; a key the section does not take (another law's, type's) is None."""
-    return cls(**{f.name: _frozen(section.get(f.name)) for f in fields(cls) if f.name in section or "kind" in f.metadata})
+    return cls(**{f.name: _frozen(section.get(f.name)) for f in fields(cls)
+                  if f.name in section or "kind" in f.metadata})
 
 
 @dataclass(frozen=True)
