@@ -1,4 +1,4 @@
-r"""The mechanogen on the deformed surface: P1 surface finite elements (design.md 1.3).
+r"""The mechanogen on the deformed surface: P1 surface finite elements (theory §1.3, §2.7).
 
     ∂t c = D Δ_Γ c + P(H) − β c,      P(H) = w H / (1 + H/Hs) for H > 0, else 0
 
@@ -8,7 +8,7 @@ stiffness K and the lumped (diagonal) mass M, so that
 
     M dc/dt = −D K c + M (P − β c).
 
-Units (design.md section 3): lengths in cell sizes, time in 1/β, c in the model's
+Units: lengths in cell sizes, time in 1/β, c in the model's
 concentration unit; K is dimensionless (cotangent weights), M is length² (vertex
 areas), D is length²/time, β is 1/time, w is concentration·length/time, Hs is 1/length.
 
@@ -41,7 +41,12 @@ import scipy.sparse as sp
 
 from ._checks import finite, real_array, triangle_array, vertex_indices
 
-__all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion"]
+__all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion",
+           "W", "HS"]
+
+#: the paper's source: production rate w and saturation curvature Hs, the defaults here and of
+#: MechanochemicalModel (femshell.coupled)
+W, HS = 15.0, 0.05
 
 
 def _check_mesh(points, triangles):
@@ -187,7 +192,7 @@ def surface_stiffness(points, triangles):
     return P1Assembler(tri, len(pts)).stiffness(pts)
 
 
-def curvature_source(H, w: float = 15.0, Hs: float = 0.05):
+def curvature_source(H, w: float = W, Hs: float = HS):
     r"""Production of mechanogen by outward curvature, P(H) = w H / (1 + H/Hs) for H > 0, else 0.
 
     H is the mean curvature relative to the rest curvature (1/length); P is in
@@ -247,10 +252,8 @@ class ReactionDiffusion:
     clipped value exceeds round-off (1e-10 of the maximum).
 
     The factorisation of A is kept while dt and the geometry are unchanged; when
-    either changes, A is refactorised on the same sparsity pattern (the symbolic
-    analysis of PARDISO is reused). Measured on a 25k-vertex sphere (2 loaded
-    cores): refactorise + solve 0.1–0.3 s; SuperLU 0.35 s; Jacobi-CG 0.03 s at
-    dt D = 0.04 but 1.6–6 s at dt D ≥ 1.5; pyamg 0.9–2.9 s.
+    either changes, A is refactorised through ``factorize`` with the previous factor
+    (a sparse direct solver reuses its symbolic analysis on the same pattern).
 
     Parameters
     ----------
@@ -262,8 +265,10 @@ class ReactionDiffusion:
         Degradation rate, 1/time (≥ 0).
     points : (n, 3) array, optional
         Initial geometry (length); can also be given to :meth:`step`.
-    backend : str
-        Linear-solver back-end for D > 0 (see :func:`femshell.solvers.linear.factorize`).
+    factorize : callable, needed for D > 0
+        ``factorize(A, reuse=previous)`` -> a factor with ``solve(b)`` and ``free()`` for the
+        symmetric positive definite A (e.g. ``functools.partial(femshell.solvers.linear.factorize,
+        kind="spd")``); it raises a RuntimeError (such as ``LinearSolverError``) when A is singular.
     nonnegative : bool
         Clip negative values (default). ``False`` for signed fields (the operator is
         linear; e.g. the spherical-harmonic validation), where nothing is clipped.
@@ -286,7 +291,8 @@ class ReactionDiffusion:
 
     >>> from femshell.mesh.generators import sphere
     >>> mesh = sphere(radius=30.0, n_vertices=200)
-    >>> rd = ReactionDiffusion(mesh.triangles, mesh.n_vertices, D=0.4, points=mesh.points)
+    >>> from femshell.solvers.linear import factorize
+    >>> rd = ReactionDiffusion(mesh.triangles, mesh.n_vertices, D=0.4, points=mesh.points, factorize=factorize)
     >>> H = np.full(mesh.n_vertices, 0.02)          # mean curvature relative to the rest shape (1/length)
     >>> c = rd.step(np.zeros(mesh.n_vertices), dt=0.1, source=curvature_source(H))
     >>> round(float(c.min()), 5), round(float(c.max()), 5)
@@ -294,12 +300,14 @@ class ReactionDiffusion:
     """
 
     def __init__(self, triangles, n_vertices: int, D: float = 0.0, beta: float = 1.0, points=None,
-                 backend: str = "auto", nonnegative: bool = True):
+                 factorize=None, nonnegative: bool = True):
+        if factorize is not None and not callable(factorize):
+            raise TypeError(f"factorize must be a callable factorize(A, reuse=...), got {type(factorize).__name__}")
         self._factor = None
         self._factor_dt = None
         self.D = D
         self.beta = beta
-        self.backend = backend
+        self.factorize = factorize
         self.nonnegative = bool(nonnegative)
         self.assembler = P1Assembler(triangles, n_vertices)
         self.n_vertices = self.assembler.n_vertices
@@ -405,13 +413,14 @@ class ReactionDiffusion:
         else:
             self._ensure_matrices()
             if self._factor is None or self._factor_dt != dt:
-                from .solvers.linear import LinearSolverError, factorize
-
+                if self.factorize is None:
+                    raise ValueError("a step with D > 0 solves (M + gamma D K) c = b: give ReactionDiffusion a "
+                                     "factorize callable (e.g. femshell.solvers.linear.factorize)")
                 A = (sp.diags(self.mass) + (gain * self.D) * self.stiffness).tocsr()
                 self._factor_dt = None          # until the new factorisation is complete (an interrupt in it)
                 try:
-                    self._factor = factorize(A, kind="spd", backend=self.backend, reuse=self._factor)
-                except LinearSolverError:
+                    self._factor = self.factorize(A, reuse=self._factor)
+                except RuntimeError:
                     # the mass term is lost to round-off next to γ·D·K, whose null space is the constants
                     self._factor = None
                     # how far diffusion reaches in the step against the surface's own size

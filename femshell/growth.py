@@ -1,4 +1,4 @@
-r"""Contractility, growth stretch and the target fields of the shell (design.md 1.1).
+r"""Contractility, growth stretch and the target fields of the shell (theory §1.1).
 
 The chemical lowers the contractility Λ of the cells; lower contractility makes the
 cells want more area. With the defaults of the seed paper (Λmax = 15, Λmin = 10,
@@ -8,7 +8,7 @@ b = 100, c* = 0.1)::
     s(c) = Λ0 / Λ(c),  Λ0 = Λmax by default                   [dimensionless]
     ā = s² ā0,   h̄ = h0 / s² ("volume") or h0 ("uniform"),   b̄ = k0 ā
 
-Units (design.md section 3): c is a concentration in the model's own unit (the one in
+Units: c is a concentration in the model's own unit (the one in
 which c* and c_max = w Hs / β are given), b is 1/concentration, lengths are in cell
 sizes, ā and ā0 are length², h in length, k0 in 1/length, b̄ in length.
 
@@ -32,9 +32,11 @@ from ._checks import real_array, triangle_array, vertex_indices
 from .geometry import element_to_vertex, mean_curvature
 
 __all__ = ["contractility", "stretch", "dstretch_dc", "element_average", "target_metric",
-           "target_thickness", "target_curvature", "GrowthRestState", "THICKNESS_MODES", "REST_CURVATURES"]
+           "target_thickness", "target_curvature", "GrowthRestState", "THICKNESS_MODES", "REST_CURVATURES", "LAM_MAX", "LAM_MIN", "B", "C_STAR"]
 
 THICKNESS_MODES = ("volume", "uniform")
+#: the paper's contractility switch, the defaults here and of MechanochemicalModel (femshell.coupled)
+LAM_MAX, LAM_MIN, B, C_STAR = 15.0, 10.0, 100.0, 0.1
 REST_CURVATURES = ("mesh", "k0")
 
 
@@ -73,10 +75,10 @@ def _as_finite(c, name="c"):
     return c
 
 
-def contractility(c, lam_max: float = 15.0, lam_min: float = 10.0, b: float = 100.0, c_star: float = 0.1):
+def contractility(c, lam_max: float = LAM_MAX, lam_min: float = LAM_MIN, b: float = B, c_star: float = C_STAR):
     r"""Cell contractility Λ(c) = Λmin + (Λmax − Λmin) · expit(b (c* − c)).
 
-    This equals (Λmax e^{b c*} + Λmin e^{b c}) / (e^{b c*} + e^{b c}) (design.md 1.1)
+    This equals (Λmax e^{b c*} + Λmin e^{b c}) / (e^{b c*} + e^{b c}) (theory §1.1)
     but never overflows: expit(x) = 1 / (1 + e^{−x}) is evaluated stably for any x.
 
     Parameters
@@ -105,8 +107,8 @@ def contractility(c, lam_max: float = 15.0, lam_min: float = 10.0, b: float = 10
         return lam_min + (lam_max - lam_min) * expit(b * (c_star - c))
 
 
-def stretch(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: float = 10.0,
-            b: float = 100.0, c_star: float = 0.1):
+def stretch(c, lam0: float | None = None, lam_max: float = LAM_MAX, lam_min: float = LAM_MIN,
+            b: float = B, c_star: float = C_STAR):
     r"""Linear growth stretch of the rest lengths, s(c) = Λ0 / Λ(c) (dimensionless).
 
     Λ0 = Λmax by default (the contractility of untouched tissue), so s = 1 for c ≪ c*
@@ -121,8 +123,8 @@ def stretch(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: float 
     return lam0 / contractility(c, lam_max, lam_min, b, c_star)
 
 
-def dstretch_dc(c, lam0: float | None = None, lam_max: float = 15.0, lam_min: float = 10.0,
-                b: float = 100.0, c_star: float = 0.1):
+def dstretch_dc(c, lam0: float | None = None, lam_max: float = LAM_MAX, lam_min: float = LAM_MIN,
+                b: float = B, c_star: float = C_STAR):
     r"""Derivative ds/dc of :func:`stretch` (1 / concentration unit).
 
     With x = b (c* − c) and σ = expit::
@@ -272,7 +274,7 @@ def _check_stretch(s, m):
 
 
 class GrowthRestState:
-    r"""The rest state of a growing shell and the mean curvature H measured from it (theory §1.1, §1.3).
+    r"""The rest state of a growing shell and the mean curvature H measured from it (theory §1.1, §2.7).
 
     Element stretches s -> RestState(ā = s² ā0, b̄ = s² b̄0, h̄(s)) -> ``model.set_rest_state``,
     and a shape u -> H = ½ tr(a⁻¹ b) − k_ref per element and per vertex. ā0 and b_mesh are the

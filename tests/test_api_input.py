@@ -6,6 +6,7 @@ import pytest
 from femshell.growth import target_thickness
 from femshell.mesh.generators import disk
 from femshell.shell import Clamped, EdgeForce, EdgeMoment, Material, ShellModel, flat_rest_state
+from femshell.solvers.linear import factorize
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +88,7 @@ def test_mesh_and_chemistry_shapes(small_disk):
         SurfaceMesh(m.points, quads)
     with pytest.raises(ValueError, match=r"triangles must have shape \(m, 3\), got \(3, 2\)"):
         SurfaceMesh(m.points, np.array([[0, 1], [1, 2], [2, 0]]))     # was reshaped into triangles
-    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.1, beta=1.0, points=m.points)
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.1, beta=1.0, points=m.points, factorize=factorize)
     with pytest.raises(ValueError, match=rf"one value per vertex, shape \({m.n_vertices},\), got shape "
                                          rf"\({m.n_triangles},\)"):
         rd.step(np.zeros(m.n_vertices), 0.1, source=np.ones(m.n_triangles))
@@ -98,7 +99,7 @@ def test_chemistry_and_growth_values(small_disk):
     from femshell.growth import contractility, stretch
 
     m = small_disk
-    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.1, beta=1.0, points=m.points)
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.1, beta=1.0, points=m.points, factorize=factorize)
     c = np.zeros(m.n_vertices)
     c[3] = -1.0
     with pytest.raises(ValueError, match="c must be >= 0 .* got min -1 at vertex 3"):
@@ -150,10 +151,10 @@ def test_curvature_spot_and_loop_arguments(small_disk):
     with pytest.raises(TypeError, match="stepping must be a TimeStepping, got dict"):
         CoupledLoop(m, MechanochemicalModel(), {"dt_max": 1.0})
     # a step too long for double precision: named, not inf or a 'rigid-body modes' pivot error
-    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.0, beta=0.0, points=m.points)
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=0.0, beta=0.0, points=m.points, factorize=factorize)
     with pytest.raises(ValueError, match="overflows c"):
         rd.step(np.ones(m.n_vertices), 1e308, source=10.0)
-    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=1.0, beta=0.0, points=m.points)
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, D=1.0, beta=0.0, points=m.points, factorize=factorize)
     with pytest.raises(ValueError, match="too long for D = 1, beta = 0"):
         rd.step(np.ones(m.n_vertices), 1e300, source=10.0)
     assert np.all(np.isfinite(rd.step(np.ones(m.n_vertices), 1.0, source=10.0)))
@@ -258,10 +259,10 @@ def test_reaction_diffusion_refactorises_when_D_or_beta_is_changed(small_disk):
     c = np.exp(-np.sum(m.points**2, axis=1))
     for name, old, new in (("D", 1.0, 5.0), ("beta", 1.0, 3.0)):
         kw = {"D": 1.0, "beta": 1.0}
-        rd = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points, **kw)
+        rd = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points, **kw, factorize=factorize)
         rd.step(c, 0.1)
         setattr(rd, name, new)
-        fresh = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points, **{**kw, name: new})
+        fresh = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points, **{**kw, name: new}, factorize=factorize)
         assert np.allclose(rd.step(c, 0.1), fresh.step(c, 0.1), rtol=1e-12, atol=1e-14)
         with pytest.raises(ValueError, match=rf"{name} must be a finite number in \[0.0, inf\), got -1"):
             setattr(rd, name, -1.0)
@@ -272,10 +273,10 @@ def test_a_negative_source_is_named_not_clipped_quietly(small_disk):
 
     m = small_disk
     for D in (0.0, 1.0):
-        rd = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points)
+        rd = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points, factorize=factorize)
         with pytest.raises(ValueError, match="source must be >= 0 with nonnegative=True .* got min -1"):
             rd.step(np.zeros(m.n_vertices), 0.1, source=-1.0)
-        signed = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points, nonnegative=False)
+        signed = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points, nonnegative=False, factorize=factorize)
         assert signed.step(np.zeros(m.n_vertices), 0.1, source=-1.0).max() < 0
 
 
@@ -356,12 +357,12 @@ def test_growth_targets_and_the_chemistry_step_name_their_bad_arguments(small_di
     with pytest.raises(ValueError, match=r"h0 must be a number or one value per element, got shape \(2, 1\)"):
         target_thickness(np.ones((2, 1)), 2.0)             # returned shape (2, 1)
     m = small_disk
-    rd = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points)
+    rd = ReactionDiffusion(m.triangles, m.n_vertices, points=m.points, factorize=factorize)
     for dt in (np.array([0.1, 0.2]), -1.0):
         with pytest.raises(ValueError, match="time step dt must be"):
             rd.step(np.zeros(m.n_vertices), dt)
     with pytest.raises(ValueError, match="n_vertices must be an integer >= 1, got 4.7"):
-        ReactionDiffusion(m.triangles, 4.7)
+        ReactionDiffusion(m.triangles, 4.7, factorize=factorize)
 
 
 def test_model_refuses_a_mesh_it_would_only_fail_on_later(small_disk):

@@ -10,7 +10,7 @@ import scipy.sparse.linalg as spla
 from femshell.chemistry import (P1Assembler, ReactionDiffusion, curvature_source, surface_mass_lumped,
                                 surface_stiffness)
 from femshell.geometry import triangle_areas
-from femshell.solvers.linear import smallest_eigenvalues
+from femshell.solvers.linear import factorize, smallest_eigenvalues
 
 
 @pytest.fixture(scope="module")
@@ -101,7 +101,7 @@ def test_exponential_update_is_exact_without_diffusion(unit_sphere):
     c0 = rng.uniform(0, 1, n)
     P = curvature_source(rng.normal(0, 0.05, n))
     beta = 1.0
-    rd = ReactionDiffusion(tri, n, D=0.0, beta=beta, points=pts)
+    rd = ReactionDiffusion(tri, n, D=0.0, beta=beta, points=pts, factorize=factorize)
     t = 0.0
     c = c0
     for dt in (0.3, 1.7, 0.01, 5.0):
@@ -110,7 +110,7 @@ def test_exponential_update_is_exact_without_diffusion(unit_sphere):
         exact = c0 * np.exp(-beta * t) + P / beta * (1 - np.exp(-beta * t))
         np.testing.assert_allclose(c, exact, rtol=1e-13, atol=1e-15)
     # β = 0: c + t P
-    rd0 = ReactionDiffusion(tri, n, D=0.0, beta=0.0)
+    rd0 = ReactionDiffusion(tri, n, D=0.0, beta=0.0, factorize=factorize)
     np.testing.assert_allclose(rd0.step(c0, 2.5, P), c0 + 2.5 * P, rtol=1e-15)
     # and no stiffness (nor mass) was ever assembled
     assert rd.stiffness is None and rd.mass is None and rd.assembler.n_assembled == 0
@@ -126,7 +126,7 @@ def test_diffusion_step_matches_its_linear_system(unit_sphere):
     P = rng.uniform(0, 0.5, n)
     D, beta, dt = 0.7, 1.0, 0.2
     decay, gamma = np.exp(-beta * dt), (1 - np.exp(-beta * dt)) / beta
-    rd = ReactionDiffusion(tri, n, D=D, beta=beta, points=pts)
+    rd = ReactionDiffusion(tri, n, D=D, beta=beta, points=pts, factorize=factorize)
     c1 = rd.step(c, dt, P)
     K = surface_stiffness(pts, tri)
     m = surface_mass_lumped(pts, tri)
@@ -154,7 +154,7 @@ def test_the_diffusion_step_is_exact_in_the_reaction_and_continuous_as_d_goes_to
     n = len(pts)
     exact = 0.5 * (1 - np.exp(-3.0))                       # c(3) from c = 0 under P = 0.5, β = 1
     for D in (0.0, 1e-12, 0.5):
-        rd = ReactionDiffusion(tri, n, D=D, beta=1.0, points=pts)
+        rd = ReactionDiffusion(tri, n, D=D, beta=1.0, points=pts, factorize=factorize)
         c = np.zeros(n)
         for _ in range(3):
             c = rd.step(c, 1.0, np.full(n, 0.5))
@@ -162,8 +162,8 @@ def test_the_diffusion_step_is_exact_in_the_reaction_and_continuous_as_d_goes_to
     rng = np.random.default_rng(5)
     c0, P = rng.uniform(0, 1, n), rng.uniform(0, 0.5, n)
     # D = 1e-15 moves c by D γ |M⁻¹K c| ~ 1e-13 here: no jump at D = 0
-    near = ReactionDiffusion(tri, n, D=1e-15, beta=1.0, points=pts).step(c0, 0.7, P)
-    zero = ReactionDiffusion(tri, n, D=0.0, beta=1.0).step(c0, 0.7, P)
+    near = ReactionDiffusion(tri, n, D=1e-15, beta=1.0, points=pts, factorize=factorize).step(c0, 0.7, P)
+    zero = ReactionDiffusion(tri, n, D=0.0, beta=1.0, factorize=factorize).step(c0, 0.7, P)
     np.testing.assert_allclose(near, zero, rtol=0, atol=1e-11)
 
 
@@ -173,7 +173,7 @@ def test_concentration_stays_nonnegative_for_huge_steps(unit_sphere):
     rng = np.random.default_rng(4)
     c = np.where(rng.uniform(size=n) < 0.02, 50.0, 0.0)     # sparse spikes
     H = rng.normal(0, 0.05, n)
-    rd = ReactionDiffusion(tri, n, D=100.0, beta=1.0, points=pts)
+    rd = ReactionDiffusion(tri, n, D=100.0, beta=1.0, points=pts, factorize=factorize)
     P = curvature_source(H, w=1000.0)
     for _ in range(5):
         c = rd.step(c, 100.0, P)
@@ -189,12 +189,12 @@ def test_negative_values_on_an_obtuse_mesh_are_clipped_and_reported():
     # edge (0, 1) has both opposite angles ≈ 157°: negative cotangent weight
     pts = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 0.1, 0], [0.5, -0.1, 0]])
     tri = np.array([[0, 1, 2], [1, 0, 3]])
-    rd = ReactionDiffusion(tri, 4, D=1.0, beta=1.0, points=pts)
+    rd = ReactionDiffusion(tri, 4, D=1.0, beta=1.0, points=pts, factorize=factorize)
     with pytest.warns(RuntimeWarning, match="negative"):
         c = rd.step(np.array([1.0, 0, 0, 0]), 0.01)
     assert np.all(c >= 0) and rd.n_clipped >= 1 and rd.n_negative_weights == 1
     # signed fields: no clipping when asked
-    rd2 = ReactionDiffusion(tri, 4, D=1.0, beta=1.0, points=pts, nonnegative=False)
+    rd2 = ReactionDiffusion(tri, 4, D=1.0, beta=1.0, points=pts, nonnegative=False, factorize=factorize)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         c2 = rd2.step(np.array([1.0, 0, 0, 0]), 0.01)
@@ -205,10 +205,34 @@ def test_stepper_argument_checks(unit_sphere):
     pts, tri = unit_sphere
     with pytest.raises(ValueError, match="D must"):
         ReactionDiffusion(tri, len(pts), D=-1.0)
-    rd = ReactionDiffusion(tri, len(pts), D=1.0)
+    rd = ReactionDiffusion(tri, len(pts), D=1.0, factorize=factorize)
     with pytest.raises(ValueError, match="no geometry"):
         rd.step(np.zeros(len(pts)), 0.1)
     with pytest.raises(ValueError, match="dt"):
         rd.step(np.zeros(len(pts)), 0.0, points=pts)
     with pytest.raises(ValueError, match="shape"):
         rd.step(np.zeros(3), 0.1, points=pts)
+
+
+def test_diffusion_needs_the_callers_linear_solver(unit_sphere):
+    """The chemistry solves with the factorisation its caller gives; D > 0 without one is named."""
+    pts, tri = unit_sphere
+    c = np.linspace(0.0, 1.0, len(pts))
+    with pytest.raises(ValueError, match="give ReactionDiffusion a factorize callable"):
+        ReactionDiffusion(tri, len(pts), D=1.0, points=pts).step(c, 0.1)
+    with pytest.raises(TypeError, match="factorize must be a callable"):
+        ReactionDiffusion(tri, len(pts), D=1.0, factorize="pardiso")
+    calls = []
+
+    def counting(A, reuse=None):
+        calls.append(A.shape)
+        return factorize(A, reuse=reuse)
+
+    rd = ReactionDiffusion(tri, len(pts), D=1.0, points=pts, factorize=counting)
+    out = rd.step(c, 0.1)
+    rd.step(out, 0.1)                                   # same dt and geometry: the factor is kept
+    assert calls == [(len(pts), len(pts))]
+    K, M = surface_stiffness(pts, tri), surface_mass_lumped(pts, tri)
+    gamma = -np.expm1(-0.1)
+    direct = spla.spsolve((sp.diags(M) + gamma * K).tocsc(), M * (c * np.exp(-0.1)))
+    assert np.allclose(out, direct, rtol=1e-10, atol=1e-14)

@@ -15,6 +15,9 @@ from scipy.optimize import brentq, minimize_scalar
 from femshell.coupled import (CoupledError, CoupledLoop, GrowthRestState, InitialSpot, MechanochemicalModel,
                               TimeStepping, feedback_gain, feedback_step_limit, gaussian_spot,
                               stable_extrapolation)
+from femshell.scene.build import loop_observers
+
+OBSERVERS = loop_observers()            # regions counted and compared by femshell.analysis, commits guarded
 from femshell.io import load_checkpoint, save_checkpoint
 from femshell.mesh.generators import sphere
 
@@ -129,7 +132,7 @@ def test_growth_rest_state_targets(ball):
 
 def test_untouched_sphere_stays_a_sphere(ball):
     p = MechanochemicalModel(h0=H0, radius=R)
-    loop = CoupledLoop(ball, p, TimeStepping(t_final=5.0, dt_initial=0.5))
+    loop = CoupledLoop(ball, p, TimeStepping(t_final=5.0, dt_initial=0.5), observers=OBSERVERS)
     res = loop.run(max_steps=4)
     assert res.ok
     assert loop.c.max() == 0.0                                # P(H) = 0 for H <= 0: exactly no chemical
@@ -152,7 +155,7 @@ def uniform_growth_energy(x, s, p, area0):
 def test_uniform_concentration_grows_the_sphere_uniformly(ball):
     p = MechanochemicalModel(h0=H0, radius=R, D=0.0)
     c0 = np.full(ball.n_vertices, 1.0)                       # far above c*: s = 1.5 everywhere
-    loop = CoupledLoop(ball, p, TimeStepping(t_final=1.0, dt_initial=0.1), c0=c0)
+    loop = CoupledLoop(ball, p, TimeStepping(t_final=1.0, dt_initial=0.1), c0=c0, observers=OBSERVERS)
     loop.run(max_steps=1)
     s = float(p.stretch(loop.c[0]))
     assert np.allclose(loop.s, s, rtol=1e-12)
@@ -182,7 +185,7 @@ def spot_run(ball):
     """A spot at the north pole: the initial state, 3 steps, and the states after 0 and 2 steps."""
     p = MechanochemicalModel(**SPOT)
     st = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2)
-    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0), observers=OBSERVERS)
     initial = {"state": loop.state_dict(), "H": loop.H_vertex.copy(), "points": loop.points.copy()}
     states = {}
     records = []
@@ -195,13 +198,13 @@ def spot_run(ball):
 
 def test_a_long_initial_equilibrium_reports_its_progress(ball, monkeypatch):
     """Every 10 s the ramp says how far it got (here the clock advances 20 s per reading)."""
-    import femshell.coupled as coupled
+    import femshell.coupled.equilibrium as equilibrium
 
     clock = iter(range(0, 10**6, 20))
-    monkeypatch.setattr(coupled.time, "perf_counter", lambda: float(next(clock)))
+    monkeypatch.setattr(equilibrium.time, "perf_counter", lambda: float(next(clock)))
     said = []
     CoupledLoop(ball, MechanochemicalModel(**SPOT), TimeStepping(t_final=1.0, ramp_ds=0.02),
-                c0=InitialSpot(amplitude=0.3, width=1.0), log=said.append)
+                c0=InitialSpot(amplitude=0.3, width=1.0), log=said.append, observers=OBSERVERS)
     fractions = [float(m.split("growth fraction ")[1].split()[0]) for m in said if "growth fraction" in m]
     assert len(fractions) >= 2 and fractions == sorted(fractions) and 0 < fractions[0] and fractions[-1] < 1
 
@@ -234,7 +237,7 @@ def test_pattern_stop_ends_a_run_whose_regions_hold_while_c_still_changes(ball):
     # stationary_pattern_time after the first step, whose pattern (none) it keeps
     p = MechanochemicalModel(h0=H0, radius=R, D=0.0)
     st = TimeStepping(t_final=20.0, dt_initial=0.1, stationary_pattern_time=1.0)
-    loop = CoupledLoop(ball, p, st, c0=np.full(ball.n_vertices, 0.05))
+    loop = CoupledLoop(ball, p, st, c0=np.full(ball.n_vertices, 0.05), observers=OBSERVERS)
     res = loop.run(max_steps=50, keep_records=True)
     assert res.status == "stationary" and "pattern (0 region(s)" in res.message
     t_first = res.records[0].t
@@ -243,7 +246,7 @@ def test_pattern_stop_ends_a_run_whose_regions_hold_while_c_still_changes(ball):
     dt = res.records[-1].dt
     assert res.records[-1].rate_c == pytest.approx(math.expm1(dt) / dt, rel=1e-9)
     assert np.allclose(loop.c, 0.05 * np.exp(-loop.t), rtol=1e-12)
-    plain = CoupledLoop(ball, p, replace(st, stationary_pattern_time=0.0), c0=np.full(ball.n_vertices, 0.05))
+    plain = CoupledLoop(ball, p, replace(st, stationary_pattern_time=0.0), c0=np.full(ball.n_vertices, 0.05), observers=OBSERVERS)
     assert plain.run(max_steps=len(res.records)).status == "max_steps"
 
 
@@ -253,7 +256,7 @@ def test_pattern_stop_of_a_spot_is_the_same_after_a_resume(ball, tmp_path):
     p = MechanochemicalModel(**SPOT)
     st = TimeStepping(t_final=30.0, dt_initial=0.05, ramp_ds=0.2, stationary_rate_c=0.0,
                       stationary_pattern_time=1.0)
-    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0), observers=OBSERVERS)
     history = []
     for rec in loop.iterate(max_steps=150):
         history.append((loop.t, find_spots(loop.points, ball.triangles, loop.c, p.c_star)))
@@ -266,7 +269,7 @@ def test_pattern_stop_of_a_spot_is_the_same_after_a_resume(ball, tmp_path):
     window = [m for t, m in history if t >= t_end - 1.0]
     assert all(same_pattern(end, m, 0.04) for m in window)
     state, _ = load_checkpoint(tmp_path / "ck.npz")
-    resumed = CoupledLoop.from_state_dict(ball, p, state, st)
+    resumed = CoupledLoop.from_state_dict(ball, p, state, st, observers=OBSERVERS)
     for _ in resumed.iterate(max_steps=150):
         pass
     assert (resumed.step, resumed.t, resumed.pattern_unchanged_for) == (loop.step, loop.t, loop.pattern_unchanged_for)
@@ -278,7 +281,7 @@ def test_resume_from_state_dict_is_bitwise_identical(ball, spot_run, tmp_path):
     # through a checkpoint file, as the scene runner does
     save_checkpoint(tmp_path / "ck.npz", states[2], {"t": states[2]["t"]})
     state, _ = load_checkpoint(tmp_path / "ck.npz")
-    resumed = CoupledLoop.from_state_dict(ball, p, state, st)
+    resumed = CoupledLoop.from_state_dict(ball, p, state, st, observers=OBSERVERS)
     rec = resumed.advance()
     assert rec.step == 3 and resumed.t == loop.t and resumed.dt == loop.dt
     assert np.array_equal(resumed.c, loop.c)
@@ -293,15 +296,15 @@ def test_a_state_is_checked_and_its_dt_kept_within_the_new_stepping(ball, spot_r
                               ("step", 2.5, "state step must be an integer"),
                               ("c", -states[2]["c"] - 1.0, "state c is negative")):
         with pytest.raises(ValueError, match=words):
-            CoupledLoop.from_state_dict(ball, p, dict(states[2], **{key: value}), st)
-    small = CoupledLoop.from_state_dict(ball, p, dict(states[2], dt=1.0), replace(st, dt_max=0.01, dt_initial=0.01))
+            CoupledLoop.from_state_dict(ball, p, dict(states[2], **{key: value}), st, observers=OBSERVERS)
+    small = CoupledLoop.from_state_dict(ball, p, dict(states[2], dt=1.0), replace(st, dt_max=0.01, dt_initial=0.01), observers=OBSERVERS)
     assert small.dt == 0.01
 
 
 def test_an_error_mid_step_is_raised_after_a_checkpoint_on_the_accepted_state(ball, spot_run):
     """A callback's error (a full disk) is not a failed step: raised, after the accepted steps are checkpointed."""
     p, st, loop, initial, states, records = spot_run
-    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st, observers=OBSERVERS)
     saved = []
 
     def disk_full(rec, lp):
@@ -314,7 +317,7 @@ def test_an_error_mid_step_is_raised_after_a_checkpoint_on_the_accepted_state(ba
 
 def test_an_error_in_an_attempt_or_in_the_commit_leaves_the_accepted_state(ball, spot_run, monkeypatch):
     p, st, loop, initial, states, records = spot_run
-    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st, observers=OBSERVERS)
 
     def broken(*args, **kwargs):
         raise RuntimeError("simulated")
@@ -334,7 +337,7 @@ def test_an_error_in_an_attempt_or_in_the_commit_leaves_the_accepted_state(ball,
 def test_a_step_that_cannot_be_made_keeps_the_last_state(ball, spot_run):
     p, st, loop, initial, states, records = spot_run
     strict = TimeStepping(t_final=10.0, dt_initial=1.0, ds_max=1e-4, max_cuts=1)
-    lp = CoupledLoop.from_state_dict(ball, p, initial["state"], strict)
+    lp = CoupledLoop.from_state_dict(ball, p, initial["state"], strict, observers=OBSERVERS)
     saved = []
     res = lp.run(checkpoint=lambda state, rec: saved.append(state))
     assert res.status == "failed" and "cuts" in res.message
@@ -353,7 +356,7 @@ def test_a_chemistry_factorisation_failure_is_a_failed_step(ball, spot_run, monk
     from femshell.solvers.linear import LinearSolverError
 
     p, st, loop, initial, states, records = spot_run
-    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st, observers=OBSERVERS)
 
     def singular(self, *a, **k):
         raise LinearSolverError("PARDISO Cholesky found a zero or negative pivot (simulated)")
@@ -369,7 +372,7 @@ def test_a_saddle_returned_by_newton_is_never_accepted(ball, spot_run, monkeypat
     from dataclasses import replace as dc_replace
 
     p, st, loop, initial, states, records = spot_run
-    lp = CoupledLoop.from_state_dict(ball, p, states[2], dc_replace(st, max_cuts=2))
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], dc_replace(st, max_cuts=2), observers=OBSERVERS)
     real = CoupledLoop._newton
 
     def saddle(self, start):
@@ -383,7 +386,7 @@ def test_a_saddle_returned_by_newton_is_never_accepted(ball, spot_run, monkeypat
 
 def test_ctrl_c_mid_step_ends_on_the_last_accepted_state_checkpointed(ball, spot_run):
     p, st, loop, initial, states, records = spot_run
-    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st, observers=OBSERVERS)
     apply = lp.growth.apply
     calls = []
 
@@ -409,7 +412,7 @@ def test_ctrl_c_while_a_step_commits_finishes_the_step_then_stops(ball, spot_run
     import signal
 
     p, st, loop, initial, states, records = spot_run
-    lp = CoupledLoop.from_state_dict(ball, p, states[2], st)
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], st, observers=OBSERVERS)
     real = CoupledLoop._update_curvature
     fired = []
 
@@ -435,7 +438,7 @@ def test_a_failed_step_names_a_membrane_compressed_past_its_ellipticity_limit(ba
     p, st, loop, initial, states, records = spot_run
     strict = TimeStepping(t_final=10.0, dt_initial=1.0, ds_max=1e-4, max_cuts=1)
     for law in ("svk", "neo-hookean"):
-        lp = CoupledLoop.from_state_dict(ball, replace(p, membrane_law=law), initial["state"], strict)
+        lp = CoupledLoop.from_state_dict(ball, replace(p, membrane_law=law), initial["state"], strict, observers=OBSERVERS)
         q = lp.shell.full(lp.u)
         q[: 3 * ball.n_vertices] *= 0.8
         lp.load_state_dict({**initial["state"], "u": q[lp.shell.free]})
@@ -455,7 +458,7 @@ def test_quasi_newton_start_reaches_the_state_plain_newton_reaches(ball, spot_ru
     from the same state, with its fresh Hessians, must land on the same shape."""
     p, st, loop, initial, states, records = spot_run
     assert states[2]["held_cholesky"] == 1 and records[2].newton_iterations == 0
-    plain = CoupledLoop.from_state_dict(ball, p, states[2], replace(st, quasi_newton=0))
+    plain = CoupledLoop.from_state_dict(ball, p, states[2], replace(st, quasi_newton=0), observers=OBSERVERS)
     assert plain.advance().newton_iterations > 0 and plain.step == loop.step
     assert np.abs(plain.points - loop.points).max() <= 1e-9 * R
     assert np.array_equal(plain.c, loop.c)
@@ -468,29 +471,29 @@ def test_snap_minimises_on_to_the_equilibrium_newton_ran_out_of_iterations_for(b
     p, st, loop, initial, states, records = spot_run
     one = dict(newton_max_iter=1, quasi_newton=0)
     tight = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, snap_ds=1.0, max_cuts=0, **one)
-    lp = CoupledLoop.from_state_dict(ball, p, states[2], tight)
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], tight, observers=OBSERVERS)
     rec = lp.advance()
     assert rec.snapped and lp.n_snaps == 1 and rec.stable and rec.dt == records[2].dt
     assert np.abs(lp.points - loop.points).max() <= 1e-9 * R
     assert lp._u_prev is None                                # no secant predictor through a jump
     never = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, snap_max_iter=0, max_cuts=0, **one)
     with pytest.raises(CoupledError, match="Newton did not converge"):
-        CoupledLoop.from_state_dict(ball, p, states[2], never).advance()
+        CoupledLoop.from_state_dict(ball, p, states[2], never, observers=OBSERVERS).advance()
     msgs = []                                                # a snap that does not settle is not retried
     once = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, snap_ds=1.0, snap_max_iter=1, max_cuts=3, **one)
     with pytest.raises(CoupledError, match="after 3 cuts"):
-        CoupledLoop.from_state_dict(ball, p, states[2], once, log=msgs.append).advance()
+        CoupledLoop.from_state_dict(ball, p, states[2], once, log=msgs.append, observers=OBSERVERS).advance()
     assert sum("minimising on" in m for m in msgs) == 1 and sum("cut to" in m for m in msgs) == 3
     small = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, snap_ds=1e-9, max_cuts=0, **one)
     with pytest.raises(CoupledError, match="Newton did not converge"):       # Δs above snap_ds: a plain failure
-        CoupledLoop.from_state_dict(ball, p, states[2], small).advance()
+        CoupledLoop.from_state_dict(ball, p, states[2], small, observers=OBSERVERS).advance()
 
 
 def test_a_stalled_newton_at_a_small_stretch_step_snaps_a_failed_line_search_does_not(ball, spot_run):
     from femshell.solvers.newton import NewtonError, NewtonResult
 
     p, st, loop, initial, states, records = spot_run
-    lp = CoupledLoop.from_state_dict(ball, p, states[2], TimeStepping(t_final=10.0, snap_ds=1e-3))
+    lp = CoupledLoop.from_state_dict(ball, p, states[2], TimeStepping(t_final=10.0, snap_ds=1e-3), observers=OBSERVERS)
     last = NewtonResult(u=lp.u, converged=False, iterations=10, energy=0.0, residual=1.0, residual_scale=1.0)
     assert lp._snap_applies(NewtonError("stalled", last, stalled=True), ds=1e-4)
     assert not lp._snap_applies(NewtonError("line search failed", last), ds=1e-4)
@@ -501,7 +504,7 @@ def test_steep_switch_strong_source_fast_diffusion_adapts(ball):
     # b = 1000: s jumps across c* within 0.001; w = 1000: c_max = 50; D = 100; dt starts at 1
     p = MechanochemicalModel(h0=H0, radius=R, lam_min=14.25, b=1000.0, w=1000.0, D=100.0)
     st = TimeStepping(t_final=10.0, dt_initial=1.0, dt_max=1.0, ramp_ds=0.1)
-    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0), observers=OBSERVERS)
     res = loop.run(max_steps=3, keep_records=True)
     assert res.ok, res.message
     assert loop.n_rejected > 0                                # the big steps were cut ...
@@ -515,7 +518,7 @@ def test_design_literal_rest_curvature_k0(ball):
     # H > 0 (the discrete curvature of the relaxed mesh is a bit above 1/R) and c stays below c*
     # (this mesh is coarse, edge 0.2 R: c -> ~0.015; on the paper's meshes much less)
     p = MechanochemicalModel(h0=H0, radius=R, rest_curvature="k0")
-    loop = CoupledLoop(ball, p, TimeStepping(t_final=5.0, dt_initial=0.5))
+    loop = CoupledLoop(ball, p, TimeStepping(t_final=5.0, dt_initial=0.5), observers=OBSERVERS)
     assert np.all(loop.growth.k_ref == 1 / R)
     assert np.abs(loop.H_vertex).max() < 0.02 / R
     loop.run(max_steps=2)
@@ -607,7 +610,7 @@ def test_extrapolated_source_is_closer_to_the_converged_run_than_the_held_one():
 
     def run(rule, ds_max):
         st = TimeStepping(t_final=1.0, dt_initial=0.05, ramp_ds=0.2, ds_max=ds_max, source_rule=rule)
-        loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+        loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0), observers=OBSERVERS)
         extrapolated = sum(loop._extrapolate == 1.0 for _ in loop.iterate())
         return loop.c.copy(), extrapolated, loop.step
 
@@ -626,13 +629,13 @@ def test_resume_with_the_extrapolated_source_is_bitwise_identical(ball, tmp_path
     """The previous state's source is rebuilt from u_prev, and whether to extrapolate is stored."""
     p = MechanochemicalModel(**SPOT)
     st = TimeStepping(t_final=10.0, dt_initial=0.05, ramp_ds=0.2, source_rule="extrapolated")
-    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0))
+    loop = CoupledLoop(ball, p, st, c0=InitialSpot(amplitude=0.3, width=1.0), observers=OBSERVERS)
     for rec in loop.iterate(max_steps=3):
         if rec.step == 2:
             save_checkpoint(tmp_path / "ck.npz", loop.state_dict(), {})
             assert loop._extrapolate > 0         # the step tested below extrapolates
     state, _ = load_checkpoint(tmp_path / "ck.npz")
-    resumed = CoupledLoop.from_state_dict(ball, p, state, st)
+    resumed = CoupledLoop.from_state_dict(ball, p, state, st, observers=OBSERVERS)
     resumed.advance()
     assert resumed.t == loop.t and resumed.dt == loop.dt
     assert np.array_equal(resumed.c, loop.c) and np.array_equal(resumed.u, loop.u)
@@ -680,9 +683,43 @@ def test_a_version_1_state_has_its_edge_angles_read_as_tangents(ball, spot_run):
     q[n_pos:] = np.arctan(q[n_pos:])
     old_u = q[shell.free]
     assert np.abs(old_u - s["u"]).max() > 0          # the angles differ from the tangents they stand for
-    lp = CoupledLoop.from_state_dict(ball, p, dict(s, version=1, u=old_u, u_prev=old_u), st)
+    lp = CoupledLoop.from_state_dict(ball, p, dict(s, version=1, u=old_u, u_prev=old_u), st, observers=OBSERVERS)
     np.testing.assert_allclose(lp.u, s["u"], rtol=1e-14, atol=1e-17)
     np.testing.assert_allclose(lp._u_prev, s["u"], rtol=1e-14, atol=1e-17)
     q[n_pos + np.flatnonzero(shell.free[n_pos:])[0]] = 2.0
     with pytest.raises(ValueError, match="past ±π/2"):
-        CoupledLoop.from_state_dict(ball, p, dict(s, version=1, u=q[shell.free]), st)
+        CoupledLoop.from_state_dict(ball, p, dict(s, version=1, u=q[shell.free]), st, observers=OBSERVERS)
+
+
+def test_without_observers_the_loop_counts_nothing_and_refuses_a_pattern_clock(ball):
+    """The loop measures patterns only through its caller's callbacks: none given, n_spots is -1 (not
+    counted), and a stop on an unchanged pattern, which needs them, is refused up front."""
+    p = MechanochemicalModel(**SPOT)
+    with pytest.raises(ValueError, match="stationary_pattern_time > 0 needs the observers measure_pattern"):
+        CoupledLoop(ball, p, TimeStepping(stationary_pattern_time=1.0), equilibrate=False)
+    loop = CoupledLoop(ball, p, TimeStepping(t_final=1.0, dt_initial=0.1), c0=InitialSpot(amplitude=0.3, width=1.0))
+    counted = CoupledLoop(ball, p, TimeStepping(t_final=1.0, dt_initial=0.1), c0=InitialSpot(amplitude=0.3, width=1.0),
+                          observers=OBSERVERS)
+    rec, ref = loop.advance(), counted.advance()
+    assert rec.n_spots == -1 and ref.n_spots == 1
+    assert np.array_equal(loop.c, counted.c) and np.array_equal(loop.u, counted.u)   # the same step otherwise
+
+
+def test_the_coupled_package_imports_no_analysis_interrupts_io_or_cli():
+    """The loop is a lower floor: it reports through callbacks instead of importing its observers."""
+    import ast
+    import pathlib
+
+    import femshell.coupled
+
+    banned = {"analysis", "_interrupts", "io", "cli", "scene", "viz"}
+    for path in pathlib.Path(femshell.coupled.__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                names = [node.module or ""] + [a.name for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
+            parts = {part for name in names for part in name.split(".")}
+            assert not (parts & banned), f"{path.name} imports {parts & banned}"

@@ -14,6 +14,7 @@ import pytest
 from femshell.chemistry import ReactionDiffusion, curvature_source
 from femshell.growth import (contractility, dstretch_dc, element_average, stretch, target_curvature,
                              target_metric, target_thickness)
+from femshell.solvers.linear import factorize
 
 
 @pytest.fixture
@@ -84,7 +85,7 @@ def test_reaction_diffusion_with_huge_production_diffusion_and_steps(strict_floa
     P = curvature_source(H, w=w, Hs=0.05)
     c = rng.uniform(0.0, 5.0, len(pts))
     bound = max(c.max(), P.max() / 1.0)
-    rd = ReactionDiffusion(tri, len(pts), D=D, beta=1.0, points=pts)
+    rd = ReactionDiffusion(tri, len(pts), D=D, beta=1.0, points=pts, factorize=factorize)
     for k in range(20):
         # the surface moves as well: stretched by up to 10x and back
         c = rd.step(c, dt, source=P, points=pts * (1.0 + 9.0 * (k % 2)))
@@ -102,7 +103,7 @@ def test_reaction_diffusion_with_huge_production_diffusion_and_steps(strict_floa
 
 def test_reaction_diffusion_without_decay_grows_linearly_and_stays_finite(strict_floats, sphere_mesh):
     pts, tri = sphere_mesh
-    rd = ReactionDiffusion(tri, len(pts), D=1e2, beta=0.0, points=pts)
+    rd = ReactionDiffusion(tri, len(pts), D=1e2, beta=0.0, points=pts, factorize=factorize)
     c = np.zeros(len(pts))
     P = curvature_source(np.full(len(pts), 1e6), w=1e3)      # saturated: ≈ w Hs = 50 everywhere
     for _ in range(10):
@@ -114,7 +115,7 @@ def test_reaction_diffusion_without_decay_grows_linearly_and_stays_finite(strict
 def test_diffusion_beyond_double_precision_names_how_far_it_reaches(sphere_mesh):
     """D = 1e30 swamps the mass matrix: the error says sqrt(D dt) against the surface's size."""
     pts, tri = sphere_mesh
-    rd = ReactionDiffusion(tri, len(pts), D=1e30, beta=1.0, points=pts)
+    rd = ReactionDiffusion(tri, len(pts), D=1e30, beta=1.0, points=pts, factorize=factorize)
     size = np.sqrt(4 * np.pi) * 30.0                         # sqrt(area) of the sphere, within the mesh's error
     with pytest.raises(ValueError, match="singular in double precision") as err:
         rd.step(np.ones(len(pts)), 0.01)
@@ -133,7 +134,7 @@ def test_obtuse_triangles_are_clipped_with_a_warning_that_names_the_mesh(sphere_
     bad = pts + 2.0 * rng.standard_normal(pts.shape)       # ~ 0.4 edge lengths: hundreds of obtuse angles
     c = np.zeros(len(pts))
     c[:5] = 1.0                                            # a sharp spike: the classic undershoot
-    rd = ReactionDiffusion(tri, len(pts), D=1.0, beta=1.0, points=bad)
+    rd = ReactionDiffusion(tri, len(pts), D=1.0, beta=1.0, points=bad, factorize=factorize)
     with pytest.warns(RuntimeWarning, match="negative cotangent weight"):
         for _ in range(5):
             c = rd.step(c, 0.1)

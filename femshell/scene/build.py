@@ -397,16 +397,30 @@ def initial_concentration(scene: Scene, mesh, params):
                                  distance=ini.distance) for p in spot_centres(ini)], axis=0)
 
 
-def time_loop(scene: Scene, mesh, state=None, log=None):
-    """The CoupledLoop of a time scene: a fresh one (initial equilibrium computed) or from ``state``."""
+def loop_observers(log=None):
+    """The callbacks of a run's coupled loop: regions counted and compared by :mod:`femshell.analysis`,
+    each step's commit held against Ctrl-C/SIGTERM (:mod:`femshell._interrupts`), progress to ``log``."""
+    from .._interrupts import committing, step_scope
+    from ..analysis import count_spots, find_spots, same_pattern
+    from ..coupled import LoopObservers
+
+    return LoopObservers(log=log, count_regions=count_spots, measure_pattern=find_spots, same_pattern=same_pattern,
+                         commit=committing, step_scope=step_scope)
+
+
+def time_loop(scene: Scene, mesh, state=None, log=None, observers=None):
+    """The CoupledLoop of a time scene: a fresh one (initial equilibrium computed) or from ``state``;
+    ``observers`` default :func:`loop_observers` (``log``)."""
     from ..coupled import CoupledLoop
 
     params, stepping, _ = coupled_parameters(scene)
     bcs = boundary_conditions(scene, mesh)
+    observers = loop_observers(log) if observers is None else observers
     if state is not None:
-        return CoupledLoop.from_state_dict(mesh, params, state, stepping, boundary_conditions=bcs, log=log)
+        return CoupledLoop.from_state_dict(mesh, params, state, stepping, boundary_conditions=bcs, log=log,
+                                           observers=observers)
     c0 = initial_concentration(scene, mesh, params)
-    return CoupledLoop(mesh, params, stepping, c0=c0, boundary_conditions=bcs, log=log)
+    return CoupledLoop(mesh, params, stepping, c0=c0, boundary_conditions=bcs, log=log, observers=observers)
 
 
 # ----------------------------------------------------------------------------- dry run

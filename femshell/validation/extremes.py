@@ -228,6 +228,7 @@ def _sigmoid_rows():
 def _chemistry_rows():
     from ..chemistry import ReactionDiffusion, curvature_source
     from ..mesh.generators import sphere
+    from ..solvers.linear import factorize
 
     m = sphere(radius=30.0, n_vertices=600, seed=0)
     pts, tri = m.points, m.triangles
@@ -240,7 +241,7 @@ def _chemistry_rows():
             P = curvature_source(H, w=w, Hs=0.05)
             c = rng.uniform(0.0, 5.0, len(pts))
             bound = max(c.max(), P.max())
-            rd = ReactionDiffusion(tri, len(pts), D=D, beta=1.0, points=pts)
+            rd = ReactionDiffusion(tri, len(pts), D=D, beta=1.0, points=pts, factorize=factorize)
             for k in range(20):
                 c = rd.step(c, dt, source=P, points=pts * (1.0 + 9.0 * (k % 2)))
                 nonfinite += int((~np.isfinite(c)).sum())

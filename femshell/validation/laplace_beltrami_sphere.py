@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..chemistry import P1Assembler, ReactionDiffusion
-from ..solvers.linear import smallest_eigenvalues
+from ..solvers.linear import factorize, smallest_eigenvalues
 from .framework import Row, timed
 
 NAME = "laplace-beltrami-sphere"
@@ -119,7 +119,8 @@ def run(level: str = "quick") -> list:
         for l, c0 in _harmonics(pts).items():
             mu = l * (l + 1)
             with timed() as t:
-                rd = ReactionDiffusion(tri, nv, D=D, beta=BETA, points=pts, nonnegative=False)
+                rd = ReactionDiffusion(tri, nv, D=D, beta=BETA, points=pts, nonnegative=False,
+                                       factorize=factorize)
                 a = _amplitude(rd, c0, mass, DT_SPACE, n_steps)
                 rd.free()
             gamma = -np.expm1(-BETA * DT_SPACE) / BETA
@@ -145,7 +146,8 @@ def run(level: str = "quick") -> list:
         amps = []
         for dt in cfg["dts"]:
             with timed() as t:
-                rd = ReactionDiffusion(tri, nv, D=D, beta=BETA, points=pts, nonnegative=False)
+                rd = ReactionDiffusion(tri, nv, D=D, beta=BETA, points=pts, nonnegative=False,
+                                       factorize=factorize)
                 a = _amplitude(rd, c0, mass, dt, int(round(T_END / dt)))
                 rd.free()
             amps.append(a)

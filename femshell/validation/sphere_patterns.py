@@ -65,6 +65,7 @@ from ..geometry import fold_angles
 from ..coupled import CoupledError, CoupledLoop, InitialSpot, MechanochemicalModel, TimeStepping
 from ..io import load_checkpoint, save_checkpoint
 from ..mesh import sphere
+from ..scene.build import loop_observers
 from .framework import Row, short_reason
 
 NAME = "sphere-patterns"
@@ -160,10 +161,12 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
         saved = {"membrane_law": "svk", "thickness_mode": model_of(scenario, R).thickness_mode, **saved}
         if {k: saved.get(k) for k in same} != {k: meta[k] for k in same}:
             raise ValueError(f"{checkpoint} belongs to another run ({saved}); remove it to start afresh")
-        loop = CoupledLoop.from_state_dict(mesh, params, state, time_stepping, log=log)
+        loop = CoupledLoop.from_state_dict(mesh, params, state, time_stepping, log=log,
+                                           observers=loop_observers(log))
         history = dict(saved.get("history", {}))
     else:
-        loop = CoupledLoop(mesh, params, time_stepping, c0=seed or InitialSpot(), log=log)
+        loop = CoupledLoop(mesh, params, time_stepping, c0=seed or InitialSpot(), log=log,
+                           observers=loop_observers(log))
         history = {}
     setup = time.perf_counter() - t0
     wall_before = float(history.get("wall_s", 0.0))     # the earlier calls of a resumed run

@@ -1,0 +1,28 @@
+r"""The mechanochemical shell in time (theory §1.1–1.4, §2.8): parameters, initial conditions, time-step
+control, the staggered loop and what it reports.
+
+========================  ==========================================================
+:mod:`.parameters`        :class:`MechanochemicalModel` (the paper's defaults, once)
+:mod:`.initial`           :func:`gaussian_spot`, :class:`InitialSpot`
+:mod:`.stepping`          :class:`TimeStepping`, :func:`feedback_gain`, :func:`feedback_step_limit`,
+                          :func:`stable_extrapolation`
+:mod:`.records`           :class:`StepRecord`, :class:`RunResult`, :class:`CoupledError`
+:mod:`.observers`         :class:`LoopObservers` (the caller's callbacks)
+:mod:`.equilibrium`       the stable equilibrium of the grown shell (Newton, snaps, ramp)
+:mod:`.state`             checkpoint state (``state_dict`` / ``load_state_dict``)
+:mod:`.loop`              :class:`CoupledLoop`
+========================  ==========================================================
+"""
+
+from ..growth import REST_CURVATURES, GrowthRestState
+from .initial import InitialSpot, gaussian_spot
+from .loop import CoupledLoop
+from .observers import LoopObservers
+from .parameters import MechanochemicalModel
+from .records import CoupledError, RunResult, StepRecord
+from .state import STATE_VERSION
+from .stepping import SOURCE_RULES, TimeStepping, feedback_gain, feedback_step_limit, stable_extrapolation
+
+__all__ = ["MechanochemicalModel", "GrowthRestState", "InitialSpot", "gaussian_spot", "TimeStepping",
+           "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "LoopObservers", "REST_CURVATURES",
+           "feedback_gain", "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES", "STATE_VERSION"]
