@@ -32,7 +32,8 @@ from ._checks import real_array, triangle_array, vertex_indices
 from .geometry import element_to_vertex, mean_curvature
 
 __all__ = ["contractility", "stretch", "dstretch_dc", "element_average", "target_metric",
-           "target_thickness", "target_curvature", "GrowthRestState", "THICKNESS_MODES", "REST_CURVATURES", "LAM_MAX", "LAM_MIN", "B", "C_STAR"]
+           "target_thickness", "target_curvature", "GrowthRestState", "THICKNESS_MODES", "REST_CURVATURES",
+           "LAM_MAX", "LAM_MIN", "B", "C_STAR"]
 
 THICKNESS_MODES = ("volume", "uniform")
 #: the paper's contractility switch, the defaults here and of MechanochemicalModel (femshell.coupled)

@@ -276,7 +276,8 @@ def test_a_negative_source_is_named_not_clipped_quietly(small_disk):
         rd = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points, factorize=factorize)
         with pytest.raises(ValueError, match="source must be >= 0 with nonnegative=True .* got min -1"):
             rd.step(np.zeros(m.n_vertices), 0.1, source=-1.0)
-        signed = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points, nonnegative=False, factorize=factorize)
+        signed = ReactionDiffusion(m.triangles, m.n_vertices, D=D, points=m.points, nonnegative=False,
+                                   factorize=factorize)
         assert signed.step(np.zeros(m.n_vertices), 0.1, source=-1.0).max() < 0
 
 

@@ -246,7 +246,8 @@ def test_pattern_stop_ends_a_run_whose_regions_hold_while_c_still_changes(ball):
     dt = res.records[-1].dt
     assert res.records[-1].rate_c == pytest.approx(math.expm1(dt) / dt, rel=1e-9)
     assert np.allclose(loop.c, 0.05 * np.exp(-loop.t), rtol=1e-12)
-    plain = CoupledLoop(ball, p, replace(st, stationary_pattern_time=0.0), c0=np.full(ball.n_vertices, 0.05), observers=OBSERVERS)
+    plain = CoupledLoop(ball, p, replace(st, stationary_pattern_time=0.0), c0=np.full(ball.n_vertices, 0.05),
+                        observers=OBSERVERS)
     assert plain.run(max_steps=len(res.records)).status == "max_steps"
 
 
@@ -297,7 +298,8 @@ def test_a_state_is_checked_and_its_dt_kept_within_the_new_stepping(ball, spot_r
                               ("c", -states[2]["c"] - 1.0, "state c is negative")):
         with pytest.raises(ValueError, match=words):
             CoupledLoop.from_state_dict(ball, p, dict(states[2], **{key: value}), st, observers=OBSERVERS)
-    small = CoupledLoop.from_state_dict(ball, p, dict(states[2], dt=1.0), replace(st, dt_max=0.01, dt_initial=0.01), observers=OBSERVERS)
+    small = CoupledLoop.from_state_dict(ball, p, dict(states[2], dt=1.0), replace(st, dt_max=0.01, dt_initial=0.01),
+                                        observers=OBSERVERS)
     assert small.dt == 0.01
 
 
@@ -438,7 +440,8 @@ def test_a_failed_step_names_a_membrane_compressed_past_its_ellipticity_limit(ba
     p, st, loop, initial, states, records = spot_run
     strict = TimeStepping(t_final=10.0, dt_initial=1.0, ds_max=1e-4, max_cuts=1)
     for law in ("svk", "neo-hookean"):
-        lp = CoupledLoop.from_state_dict(ball, replace(p, membrane_law=law), initial["state"], strict, observers=OBSERVERS)
+        lp = CoupledLoop.from_state_dict(ball, replace(p, membrane_law=law), initial["state"], strict,
+                                         observers=OBSERVERS)
         q = lp.shell.full(lp.u)
         q[: 3 * ball.n_vertices] *= 0.8
         lp.load_state_dict({**initial["state"], "u": q[lp.shell.free]})
