@@ -1,17 +1,15 @@
 r"""The mechanochemical shell in time (theory §1.1–1.4, §2.8): parameters, initial conditions, time-step
 control, the staggered loop and what it reports.
 
-========================  ==========================================================
-:mod:`.parameters`        :class:`MechanochemicalModel` (the paper's defaults, once)
-:mod:`.initial`           :func:`gaussian_spot`, :class:`InitialSpot`
-:mod:`.stepping`          :class:`TimeStepping`, :func:`feedback_gain`, :func:`feedback_step_limit`,
-                          :func:`stable_extrapolation`
-:mod:`.records`           :class:`StepRecord`, :class:`RunResult`, :class:`CoupledError`
-:mod:`.observers`         :class:`LoopObservers` (the caller's callbacks)
-:mod:`.equilibrium`       the stable equilibrium of the grown shell (Newton, snaps, ramp)
-:mod:`.state`             checkpoint state (``state_dict`` / ``load_state_dict``)
-:mod:`.loop`              :class:`CoupledLoop`
-========================  ==========================================================
+* :mod:`femshell.coupled.parameters`: :class:`MechanochemicalModel` (the paper's defaults, once);
+* :mod:`femshell.coupled.initial`: :func:`gaussian_spot`, :class:`InitialSpot`;
+* :mod:`femshell.coupled.stepping`: :class:`TimeStepping`, :func:`feedback_gain`,
+  :func:`feedback_step_limit`, :func:`stable_extrapolation`;
+* :mod:`femshell.coupled.records`: :class:`StepRecord`, :class:`RunResult`, :class:`CoupledError`;
+* :mod:`femshell.coupled.observers`: :class:`LoopObservers`, the caller's callbacks;
+* :mod:`femshell.coupled.equilibrium`: the stable equilibrium of the grown shell (Newton, snaps, ramp);
+* :mod:`femshell.coupled.state`: the checkpoint state (``state_dict`` / ``load_state_dict``);
+* :mod:`femshell.coupled.loop`: :class:`CoupledLoop`.
 """
 
 from ..growth import REST_CURVATURES, GrowthRestState

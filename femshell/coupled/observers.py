@@ -19,16 +19,21 @@ __all__ = ["LoopObservers"]
 class LoopObservers:
     """Callbacks of a :class:`~femshell.coupled.loop.CoupledLoop`; every one optional.
 
-    log(line) : progress, one line per step, cut and notice.
-    count_regions(points, triangles, c, c_star) -> int : N_sp, the regions with c > c*, of each
-        step's record (without it records carry n_spots = -1, "not counted").
-    measure_pattern(points, triangles, c, c_star) -> measures (with ``n_spots`` and
-        ``fraction_patterned``), same_pattern(a, b, tol) -> bool : the pattern's clock of
-        ``TimeStepping.stationary_pattern_time`` (needed when that is > 0).
-    commit() : context manager around the commit of an accepted step (hold interrupts there, so
-        a step is never half taken).
-    step_scope() : context manager around one step of ``run`` with its callback and checkpoint
-        (where an interrupt held by ``commit`` is raised).
+    Parameters
+    ----------
+    log : callable ``log(line)``
+        Progress: one line per step, cut and notice.
+    count_regions : callable ``count_regions(points, triangles, c, c_star) -> int``
+        N_sp, the regions with c > c*, of each step's record (without it records carry
+        n_spots = -1, "not counted").
+    measure_pattern, same_pattern : callables ``measure_pattern(points, triangles, c, c_star)``
+        (measures with ``n_spots`` and ``fraction_patterned``) and ``same_pattern(a, b, tol) -> bool``
+        The pattern's clock of ``TimeStepping.stationary_pattern_time`` (needed when that is > 0).
+    commit : callable returning a context manager
+        Around the commit of an accepted step: hold interrupts there, so a step is never half taken.
+    step_scope : callable returning a context manager
+        Around one step of ``run`` with its callback and checkpoint (where an interrupt held by
+        ``commit`` is raised).
     """
 
     log: Callable[[str], None] | None = None

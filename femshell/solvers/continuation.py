@@ -17,7 +17,7 @@ every accepted step). The branch r(u, λ) = 0 is parametrised by the arclength s
 
 The pieces, one module each (this module gathers their public names):
 
-* :mod:`.parameters`: :class:`LoadParameter` (λ = ``model.load_factor``) and
+* :mod:`femshell.solvers.parameters`: :class:`LoadParameter` (λ = ``model.load_factor``) and
   :class:`GrowthParameter` (λ defines the rest state) adapt a :class:`~femshell.shell.ShellModel`;
   for buckling give them ``length_scale=thickness`` (buckles grow on that scale);
 * :mod:`.corrector`: bordered solves, the Newton corrector on the hyperplane, tangent, inertia
