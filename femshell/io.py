@@ -615,6 +615,28 @@ def _prev_path(path: Path) -> Path:
     return path.with_name(path.name + ".prev")
 
 
+#: checkpoints this process wrote (and verified), by resolved path -> their (inode, size, mtime):
+#: rotating one into ``.prev`` needs no second read
+_VERIFIED: dict = {}
+
+
+def _signature(path: Path) -> tuple:
+    st = path.stat()
+    return st.st_ino, st.st_size, st.st_mtime_ns
+
+
+def _readable(path: Path) -> bool:
+    """Whether ``path`` is a readable checkpoint (one this process wrote and nobody changed since, or
+    one that reads back)."""
+    if _VERIFIED.get(str(path.resolve())) == _signature(path):
+        return True
+    try:
+        _read_checkpoint(path)
+    except (CheckpointError, OSError):
+        return False
+    return True
+
+
 def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
     """Save a checkpoint atomically; the checkpoint it replaces is kept as ``<path>.prev``.
 
@@ -624,7 +646,9 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
     The file is an uncompressed ``.npz`` (readable without pickle) with the meta as
     JSON inside. Sequence: new file complete in a temporary file -> the current
     checkpoint is linked (or copied) to ``.prev`` atomically -> the new file replaces
-    the current one. At every instant ``path`` is a complete checkpoint.
+    the current one. At every instant ``path`` is a complete checkpoint. A current file
+    that does not read (the one a resume fell back from) is replaced without becoming
+    ``.prev``: the readable ``.prev`` stays the fallback.
     """
     path = Path(path)
     if path.suffix != ".npz":
@@ -674,7 +698,7 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
             f.flush()
             os.fsync(f.fileno())
         _read_checkpoint(tmp)   # verify what was written before it replaces anything
-        if path.exists():
+        if path.exists() and _readable(path):
             prev, prev_tmp = _prev_path(path), _tmp_name(_prev_path(path))
             try:
                 os.link(path, prev_tmp)
@@ -682,6 +706,7 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
                 shutil.copy2(path, prev_tmp)
             os.replace(prev_tmp, prev)
         os.replace(tmp, path)
+        _VERIFIED[str(path.resolve())] = _signature(path)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()

@@ -267,6 +267,30 @@ def test_checkpoint_falls_back_to_prev_when_corrupt(tmp_path):
         assert load_checkpoint(p)[1] == {"step": 3}
 
 
+def test_a_checkpoint_that_failed_to_read_is_never_rotated_into_prev(tmp_path):
+    """A resume that fell back to .prev, then saved: the corrupt file became .prev, and the one step
+    after had no readable fallback (issue 65, item 5)."""
+    p = tmp_path / "checkpoint.npz"
+    save_checkpoint(p, _state(1), {"step": 1})
+    save_checkpoint(p, _state(2), {"step": 2})
+    data = bytearray(p.read_bytes())
+    data[len(data) // 3] ^= 0xFF
+    p.write_bytes(bytes(data))
+    with pytest.warns(RuntimeWarning, match="previous checkpoint"):
+        assert load_checkpoint(p)[1] == {"step": 1}
+    save_checkpoint(p, _state(2), {"step": 2})              # the resumed run's next checkpoint
+    prev = tmp_path / "checkpoint.npz.prev"
+    assert load_checkpoint(prev)[1] == {"step": 1}         # still the readable fallback
+    p.write_bytes(bytes(data))                             # and if the new one is lost too
+    with pytest.warns(RuntimeWarning):
+        assert load_checkpoint(p)[1] == {"step": 1}
+    # a readable current checkpoint, also one another process wrote, is still rotated
+    save_checkpoint(p, _state(3), {"step": 3})
+    p.write_bytes(p.read_bytes())                          # same content, not written by save_checkpoint
+    save_checkpoint(p, _state(4), {"step": 4})
+    assert load_checkpoint(prev)[1] == {"step": 3}
+
+
 def test_paths_and_values_that_cannot_be_written_or_read(tmp_path):
     (tmp_path / "isdir.npz").mkdir()
     with pytest.raises(ValueError, match="is a directory"):
