@@ -386,8 +386,13 @@ def test_mobius_strip_is_non_orientable():
     assert m.topology.euler_characteristic == 0 and len(m.topology.boundary_edge_groups) == 1
     with pytest.raises(MeshError, match=r"non-orientable .* edge \(\d+, \d+\) between triangles \d+ and \d+"):
         orient_consistently(m)
-    with pytest.raises(MeshError, match="inconsistent orientation"):
+    with pytest.raises(MeshError, match="inconsistent orientation") as err:
         check_mesh(m)
+    # it was told to use orient_consistently, which refuses it (issue 65, item 6)
+    assert "non-orientable" in str(err.value) and "orient_consistently" not in str(err.value)
+    flipped = SurfaceMesh(plate().points, plate().triangles[[0, 1]][:, [0, 2, 1]].tolist() + plate().triangles[2:].tolist())
+    with pytest.raises(MeshError, match="fix with orient_consistently"):      # an orientable one still is
+        check_mesh(flipped)
 
 
 # --------------------------------------------------------------------------- quality numbers

@@ -296,7 +296,10 @@ def check_mesh(mesh: SurfaceMesh, *, require_closed: bool | None = None,
         problems.append("inconsistent orientation: " + _examples(
             inc, lambda e: f"edge {tuple(topo.edges[e].tolist())} runs the same way in triangles "
                            f"{topo.edge_faces[e, 0]} and {topo.edge_faces[e, 1]}")
-            + f" ({_plural(len(inc), 'edge')}); fix with orient_consistently(mesh)")
+            + f" ({_plural(len(inc), 'edge')}); " + (
+                "fix with orient_consistently(mesh)" if not len(_relative_flips(topo, len(tri))[3]) else
+                "the surface is non-orientable (like a Möbius strip): no flips make it consistent, and a "
+                "shell needs a two-sided surface"))
 
     deg = np.flatnonzero(degenerate)
     if len(deg):
@@ -466,16 +469,7 @@ def orient_consistently(mesh: SurfaceMesh) -> SurfaceMesh:
     """
     topo = mesh.topology
     tri = mesh.triangles
-    m = len(tri)
-    inner = np.flatnonzero(topo.edge_faces[:, 1] >= 0)
-    f0, f1 = topo.edge_faces[inner, 0], topo.edge_faces[inner, 1]
-    k0, k1 = topo.edge_local[inner, 0], topo.edge_local[inner, 1]
-    same = topo.face_edge_sign[f0, k0] == topo.face_edge_sign[f1, k1]
-
-    n_comp, comp = _face_components(topo)
-    flip = _flip_parity(m, f0, f1, same, comp)
-
-    still = np.flatnonzero(same ^ flip[f0] ^ flip[f1])
+    flip, inner, f0, still, n_comp, comp = _relative_flips(topo, len(tri))
     if len(still):
         e = inner[still[0]]
         bad_comps = np.unique(comp[f0[still]])
@@ -492,6 +486,18 @@ def orient_consistently(mesh: SurfaceMesh) -> SurfaceMesh:
         return mesh
     new_tri = np.where(flip[:, None], tri[:, [0, 2, 1]], tri)
     return SurfaceMesh(mesh.points, new_tri, mesh.boundary, mesh.name)
+
+
+def _relative_flips(topo, m):
+    """(flip per face to agree with its component's root, the interior edges, their first faces, the
+    interior edges still inconsistent after the flips (non-orientable where any), n_comp, comp)."""
+    inner = np.flatnonzero(topo.edge_faces[:, 1] >= 0)
+    f0, f1 = topo.edge_faces[inner, 0], topo.edge_faces[inner, 1]
+    k0, k1 = topo.edge_local[inner, 0], topo.edge_local[inner, 1]
+    same = topo.face_edge_sign[f0, k0] == topo.face_edge_sign[f1, k1]
+    n_comp, comp = _face_components(topo)
+    flip = _flip_parity(m, f0, f1, same, comp)
+    return flip, inner, f0, np.flatnonzero(same ^ flip[f0] ^ flip[f1]), n_comp, comp
 
 
 def _flip_parity(m, f0, f1, same, comp):
