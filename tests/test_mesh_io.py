@@ -121,8 +121,53 @@ def test_creates_missing_directory(tmp_path, slit_ring):
 def test_unknown_extension(tmp_path, slit_ring):
     with pytest.raises(ValueError, match=r"\.msh.*\.vtu.*\.xdmf"):
         write_mesh(slit_ring, tmp_path / "m.stl")
-    with pytest.raises(ValueError, match="allowed"):
-        read_mesh(tmp_path / "m.obj")
+    (tmp_path / "m.xyz").write_text("1 2 3\n")
+    with pytest.raises(ValueError, match=r"femshell reads what meshio reads: .*\.obj.*\.stl"):
+        read_mesh(tmp_path / "m.xyz")
+
+
+@pytest.mark.parametrize("ext", ["obj", "stl", "ply", "off", "vtk"])
+def test_every_surface_format_meshio_reads(tmp_path, ext):
+    """Only .msh, .vtu and .xdmf were read (issue 65, item 7)."""
+    import meshio
+
+    m = sphere(1.0, n_vertices=60)
+    path = tmp_path / f"s.{ext}"
+    meshio.write(path, meshio.Mesh(m.points, [("triangle", m.triangles)]))
+    back = read_mesh(path)
+    assert back.n_vertices == m.n_vertices and back.n_triangles == m.n_triangles
+    tol = 1e-6 if ext == "stl" else 0.0                   # binary STL stores float32
+    corners = np.sort(back.points[back.triangles].reshape(len(back.triangles), -1).round(5), axis=0)
+    assert np.allclose(corners, np.sort(m.points[m.triangles].reshape(len(m.triangles), -1).round(5), axis=0),
+                       atol=tol + 1e-5)
+    assert back.topology.n_edges == m.topology.n_edges     # connected as the original
+
+
+def _ascii_stl(path, points, triangles, jitter):
+    """An ASCII STL whose corners are written per facet, each copy moved by up to ``jitter``."""
+    rng = np.random.default_rng(1)
+    lines = ["solid s"]
+    for t in triangles:
+        lines += ["facet normal 0 0 0", "outer loop"]
+        lines += [f"vertex {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in points[t] + jitter * rng.uniform(-1, 1, (3, 3))]
+        lines += ["endloop", "endfacet"]
+    path.write_text("\n".join(lines + ["endsolid s", ""]))
+
+
+def test_stl_duplicated_vertices_are_refused_or_merged_on_request(tmp_path):
+    m = sphere(1.0, n_vertices=60)
+    path = tmp_path / "soup.stl"
+    _ascii_stl(path, m.points, m.triangles, jitter=1e-12)
+    with pytest.raises(MeshError, match=r"vertices coincide with another.*merge_vertices = true"):
+        read_mesh(path)
+    with pytest.warns(RuntimeWarning, match=rf"merged \d+ vertices .* -> {m.n_vertices} vertices"):
+        back = read_mesh(path, merge_vertices=True)
+    assert back.n_vertices == m.n_vertices and back.topology.n_edges == m.topology.n_edges
+    assert back.topology.boundary_edge_groups == {} or not any(len(v) for v in back.boundary.values())
+    # vertices apart by more than the tolerance stay apart (a slit in a .vtu is never merged unasked)
+    ring = annulus(0.5, 1.0, edge_length=0.3, slit=True)
+    write_mesh(ring, tmp_path / "ring.vtu")
+    assert read_mesh(tmp_path / "ring.vtu").n_vertices == ring.n_vertices
 
 
 def test_missing_file(tmp_path):

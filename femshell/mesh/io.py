@@ -1,4 +1,5 @@
-"""Read and write a :class:`~femshell.mesh.SurfaceMesh` through meshio (.msh, .vtu, .xdmf).
+"""Read and write a :class:`~femshell.mesh.SurfaceMesh` through meshio (writes .msh, .vtu, .xdmf; reads
+those and every triangle format meshio reads: .obj, .stl, .ply, .off, .vtk, ...).
 
 File convention (the same for the three formats):
 
@@ -46,6 +47,7 @@ import os
 import shutil
 import sys
 import tempfile
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -69,6 +71,49 @@ def _format(path: Path) -> str:
         raise ValueError(f"unknown mesh file extension '{path.suffix}' of {path}; "
                          f"allowed: {', '.join(MESH_FORMATS)}")
     return MESH_FORMATS[ext]
+
+
+def _read_format(path: Path) -> str:
+    """meshio's format for reading ``path``: the three written formats, else any meshio reads
+    (.obj, .stl, .ply, .off, .vtk, ...; double extensions such as .vol.gz too)."""
+    import meshio
+
+    name = path.name.lower()
+    if path.suffix.lower() in MESH_FORMATS:
+        return "gmsh" if path.suffix.lower() == ".msh" else MESH_FORMATS[path.suffix.lower()]
+    known = meshio.extension_to_filetypes
+    ext = next((e for e in sorted(known, key=len, reverse=True) if name.endswith(e)), None)
+    if ext is None:
+        raise ValueError(f"unknown mesh file extension '{path.suffix}' of {path}; femshell reads what meshio "
+                         f"reads: {', '.join(sorted(known))}")
+    return known[ext][0]
+
+
+#: vertices closer than this fraction of the mean triangle edge count as one (merge_vertices)
+MERGE_TOL = 1e-6
+
+
+def _coincident(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """For each vertex, the lowest-numbered vertex within ``MERGE_TOL`` x the mean edge length of it
+    (itself when none): an STL file stores every triangle's corners separately."""
+    from scipy.spatial import cKDTree
+
+    e = points[tri[:, [1, 2, 0]]] - points[tri]
+    tol = MERGE_TOL * float(np.linalg.norm(e, axis=2).mean())
+    rep = np.arange(len(points))
+    pairs = cKDTree(points).query_pairs(tol, output_type="ndarray") if tol > 0 else np.zeros((0, 2), int)
+    if len(pairs):
+        # union-find over the close pairs, vectorised: repeat "each takes its partner's lower label"
+        while True:
+            lo = np.minimum(rep[pairs[:, 0]], rep[pairs[:, 1]])
+            new = rep.copy()
+            np.minimum.at(new, pairs[:, 0], lo)
+            np.minimum.at(new, pairs[:, 1], lo)
+            new = new[new]
+            if np.array_equal(new, rep):
+                break
+            rep = new
+    return rep
 
 
 # ----------------------------------------------------------------------------- write
@@ -206,7 +251,9 @@ def meshio_read(path, file_format=None):
 
     said = io.StringIO()
     try:
-        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said), warnings.catch_warnings():
+            # meshio's binary-STL size test overflows on an ASCII file's header, harmlessly
+            warnings.filterwarnings("ignore", "overflow encountered", RuntimeWarning)
             raw = meshio.read(path, file_format=file_format)
     except (Exception, SystemExit) as exc:   # meshio raises assorted errors for damaged files
         why = " ".join(said.getvalue().split()).removeprefix("Error: ") or str(exc) or type(exc).__name__
@@ -216,8 +263,9 @@ def meshio_read(path, file_format=None):
     return raw
 
 
-def read_mesh(path, with_data=False):
-    """Read a surface mesh from a .msh, .vtu or .xdmf file.
+def read_mesh(path, with_data=False, merge_vertices=False):
+    """Read a surface mesh from any triangle file meshio reads: .msh, .vtu, .xdmf (the formats
+    :func:`write_mesh` writes, with named boundary curves), .obj, .stl, .ply, .off, .vtk, ...
 
     Returns a :class:`SurfaceMesh` whose boundary curves are the named line
     cells of the file (see the module docstring). With ``with_data=True``
@@ -225,17 +273,23 @@ def read_mesh(path, with_data=False):
     the returned vertices) and triangle data (one row per triangle), without
     the file-convention arrays.
 
+    Vertices that coincide (closer than ``MERGE_TOL`` x the mean edge length) leave the
+    triangles unconnected there. ``merge_vertices=True`` merges them (a RuntimeWarning says
+    how many). An STL file stores every triangle's corners and meshio merges only the
+    bit-identical ones: there, coinciding vertices are refused with their count unless merged;
+    in other formats they are kept (the two sides of a slit coincide).
+
     Raises FileNotFoundError (with the path) for a missing file, ValueError
-    for an unknown extension, :class:`MeshError` for a file without triangles
-    or with boundary segments that are not edges of the triangles.
+    for an unknown extension, :class:`MeshError` for a file without triangles,
+    with coinciding vertices, or with boundary segments that are not edges of the triangles.
 
     >>> mesh = read_mesh("meshes/sphere_r1_500.vtu")     # doctest: +SKIP
     """
     path = Path(path)
-    fmt = _format(path)
+    fmt = _read_format(path)
     if not path.is_file():
         raise FileNotFoundError(f"mesh file not found: {path}")
-    raw = meshio_read(path, "gmsh" if fmt == "gmsh22" else fmt)
+    raw = meshio_read(path, fmt)
 
     blocks = [(i, c) for i, c in enumerate(raw.cells) if c.type == "triangle"]
     if not blocks:
@@ -280,6 +334,7 @@ def read_mesh(path, with_data=False):
             boundary[k] = new[s]
         points = points[used]
         point_data = {k: v[used] for k, v in point_data.items()}
+    points, tri, boundary, point_data = _merged(path, points, tri, boundary, point_data, merge_vertices)
     mesh = SurfaceMesh(points, tri, boundary, name=path.name)
     mesh.topology   # validate now: non-manifold edges or stray segments raise MeshError here
     if not with_data:
@@ -287,3 +342,32 @@ def read_mesh(path, with_data=False):
     cell_data = {k: np.concatenate([np.asarray(v[i]) for i, _ in blocks])
                  for k, v in raw.cell_data.items() if k not in _INTERNAL and not k.startswith("gmsh:")}
     return mesh, point_data, cell_data
+
+
+def _merged(path, points, tri, boundary, point_data, merge):
+    """The mesh with coinciding vertices merged (``merge``) or, in an STL file, refused (see :func:`read_mesh`);
+    elsewhere they may be meant (the two sides of a slit) and are kept unless merging is asked for."""
+    if not merge and path.suffix.lower() != ".stl":
+        return points, tri, boundary, point_data
+    rep = _coincident(points, tri)
+    n_dup = int(np.count_nonzero(rep != np.arange(len(points))))
+    if not n_dup:
+        return points, tri, boundary, point_data
+    if not merge:
+        raise MeshError(f"mesh file {path}: {n_dup} of its {len(points)} vertices coincide with another (within "
+                        f"{MERGE_TOL:g} of the mean edge length), so the triangles are not connected there (an STL "
+                        "file stores each triangle's corners separately); merge them: [mesh] merge_vertices = true "
+                        "in a scene, read_mesh(..., merge_vertices=True) in Python")
+    keep = np.unique(rep)
+    new = np.full(len(points), -1, np.int64)
+    new[keep] = np.arange(len(keep))
+    tri = new[rep[tri]]
+    collapsed = (tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 2] == tri[:, 0])
+    if collapsed.any():
+        raise MeshError(f"mesh file {path}: merging its {n_dup} coinciding vertices collapses "
+                        f"{int(collapsed.sum())} triangles to lines or points (triangles smaller than "
+                        f"{MERGE_TOL:g} of the mean edge); repair the mesh")
+    warnings.warn(f"mesh file {path}: merged {n_dup} vertices that coincide with another (within {MERGE_TOL:g} of "
+                  f"the mean edge length): {len(points)} -> {len(keep)} vertices", RuntimeWarning, stacklevel=3)
+    boundary = {k: new[rep[s]] for k, s in boundary.items()}
+    return points[keep], tri, boundary, {k: v[keep] for k, v in point_data.items()}
