@@ -71,7 +71,8 @@ def _run_parser(sub):
                "  femshell run sphere-spots --set mesh.n_vertices=2000 --set solver.t_final=5\n"
                "  femshell run sphere-spots --out runs/b --resume   continue after Ctrl-C or a kill\n\n"
                "--set KEY=VALUE overrides one scene key (section.key; VALUE is TOML, or a bare word taken as a\n"
-               "string; boundary.0.curve=left reaches into lists). Setting mesh.n_vertices drops the file's\n"
+               "string; boundary.0.curve=left reaches into lists; a table merges: material={E=2} is\n"
+               "material.E=2, the section's other keys kept). Setting mesh.n_vertices drops the file's\n"
                "mesh.edge_length and vice versa. The run's description (header, summary.json, scene.toml)\n"
                "ends with the overrides, [--set ...]. `femshell scenes NAME` prints an embedded scene to start from.\n\n"
                "An --out that holds a run is never overwritten silently: give --resume (continue it) or\n"
@@ -132,6 +133,7 @@ def _parser():
     d.add_argument("--fps", type=_positive("--fps"), default=5.0, help="movie frames per second (at most 50 for a GIF)")
     d.add_argument("--cmap", default="viridis", help="matplotlib colour map")
     d.add_argument("--no-movie", action="store_true", help="pictures only")
+    p.subcommands = {"mesh": m, "validate": v, "run": r, "scenes": sc, "render": d}     # for their usage errors
     return p
 
 
@@ -281,6 +283,13 @@ def _cmd_render(args):
         raise ValueError(f"--every must be >= 1, got {args.every}")
     if Path(args.dir).is_dir():
         from .io import find_series
+        from .scene.runner import pictures_pending, recover_run_dir, run_scene
+
+        recover_run_dir(args.dir, busy_ok=True)      # an --overwrite killed while it started: its earlier run back
+        if pictures_pending(args.dir):               # a finished run stopped before its final pictures
+            code = run_scene(None, out=args.dir, resume=True, quiet=True)
+            if code:
+                return code
 
         find_series(Path(args.dir), args.series)     # a directory that is no run: said before pictures/ is made
         check_writable_dir(Path(args.dir) / "pictures", "pictures directory")
@@ -296,7 +305,9 @@ def _cmd_render(args):
 
 def main(argv=None):
     parser = _parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:     # said with the subcommand's usage, not the top level's
+        (parser.subcommands.get(args.command) or parser).error(f"unrecognized arguments: {' '.join(unknown)}")
     if args.command is None:
         parser.print_help()
         return 0

@@ -4,6 +4,7 @@ Runs go through ``femshell.cli.main`` in this process (JAX compiles once for all
 them); the kill -9 test runs ``femshell run`` in a subprocess.
 """
 
+import contextlib
 import csv
 import json
 import os
@@ -279,16 +280,55 @@ def test_ctrl_c_while_a_finished_run_writes_its_results_keeps_them_consistent(tm
 
     monkeypatch.setattr(fio, "write_summary", signalled_summary)
     out = tmp_path / "a"
-    assert run("default", out, overrides=SPHERE_TINY) == 0
+    assert run("default", out, overrides=SPHERE_TINY) == 130       # interrupted, as any stopped run
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "t_final" and s["steps"] == load_checkpoint(out / "checkpoint.npz")[1]["step"]
     monkeypatch.setattr(fio, "write_summary", real_summary)
     monkeypatch.setattr(runner.TimeRunner, "pictures", signalled_pictures)
     out = tmp_path / "b"
-    assert run("default", out, overrides=SPHERE_TINY, pictures=True) == 0
+    assert run("default", out, overrides=SPHERE_TINY, pictures=True) == 130
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "t_final" and s["steps"] == load_checkpoint(out / "checkpoint.npz")[1]["step"]
-    assert "pictures skipped" in capsys.readouterr().err
+    assert "interrupted while drawing the final pictures" in capsys.readouterr().err
+
+
+@pytest.mark.usefixtures("ctrl_c_raises")
+@pytest.mark.parametrize("renderer", ["raises", "swallows", "import-error"])
+def test_ctrl_c_while_the_final_pictures_are_drawn_has_one_outcome(tmp_path, monkeypatch, capsys, renderer):
+    """A Ctrl-C while the pictures were drawn gave an ImportError from VTK, a swallowed signal or
+    "pictures skipped", always exit 0 (issue 65, item 3). Now: exit 130, the run finished with its
+    pictures pending, and --resume draws them."""
+    from femshell.scene import runner
+
+    real_pictures = runner.TimeRunner.pictures
+
+    def ctrl_c_in_the_renderer(self):
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            if renderer == "raises":
+                raise
+            if renderer == "import-error":          # as VTK's import machinery turns it
+                raise ImportError("cannot import name 'vtkRenderingOpenGL2' (simulated)") from None
+        return real_pictures(self)
+
+    monkeypatch.setattr(runner.TimeRunner, "pictures", ctrl_c_in_the_renderer)
+    out = tmp_path / "run"
+    assert run("default", out, overrides=SPHERE_TINY, pictures=True) == 130
+    assert "interrupted while drawing the final pictures" in capsys.readouterr().err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "t_final" and s["files"]["pictures_pending"] and s["files"]["pictures"] == []
+    monkeypatch.undo()
+    if renderer == "swallows":              # femshell render draws them as well as --resume
+        assert main(["render", str(out), "--no-movie", "--every", "1000"]) == 0
+    else:
+        assert main(["run", "--out", str(out), "--resume", "-q"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert "pictures/top.png" in s["files"]["pictures"] and not s["files"]["pictures_pending"]
+    assert (out / "pictures" / "top.png").stat().st_size > 1000
+    capsys.readouterr()
+    assert main(["run", "--out", str(out), "--resume"]) == 0
+    assert "nothing to do" in capsys.readouterr().out
 
 
 def _second_step_raises(monkeypatch, exc):
@@ -715,6 +755,40 @@ def test_an_overwrite_stopped_while_it_starts_keeps_the_earlier_run(tmp_path):
     (out / "series_000000.vtu").write_text("half a frame")
     assert run("default", out, extra=["--resume"], overrides=SPHERE_TINY) == 0     # finished: nothing to do
     assert _tree(out) == before
+
+
+def test_an_overwrite_killed_while_it_starts_is_put_back_by_any_command(tmp_path, capsys):
+    """After a kill -9 in an --overwrite's start-up, `run --out X --resume` said "no scene.toml to resume
+    from" and `render X` found no series (issue 65, item 1): without the scene named, each puts the
+    earlier run back; a set-aside cut short (some files moved) and a deletion cut short are finished."""
+    from femshell.scene.runner import DROPPED, REPLACED, RunDir
+
+    out = tmp_path / "run"
+    assert run("default", out, overrides=SPHERE_TINY) == 0        # finished: a --resume writes nothing
+    before = _tree(out)
+    rd = RunDir(out)
+    for command in (["run", "--out", str(out), "--resume", "-q"],
+                    ["render", str(out), "--no-movie"]):
+        rd.set_aside()
+        (out / "series_000000.vtu").write_text("half a frame of the new run")
+        assert main(command) == 0, capsys.readouterr().err
+        assert "put back the run" in capsys.readouterr().err
+        for p in (out / "pictures").glob("*"):
+            p.unlink()
+        with contextlib.suppress(FileNotFoundError):
+            (out / "pictures").rmdir()
+        assert _tree(out) == before
+    # killed while it moved the earlier run's files: those moved come back, those left stay
+    (out / REPLACED).mkdir()
+    (out / "summary.json").rename(out / REPLACED / "summary.json")
+    (out / "checkpoint.npz").rename(out / REPLACED / "checkpoint.npz")
+    assert run("default", out, overrides=SPHERE_TINY, extra=["--resume"]) == 0
+    assert _tree(out) == before
+    # killed while it deleted the replaced run: the deletion is finished, the new run kept
+    (out / DROPPED).mkdir()
+    (out / DROPPED / "summary.json").write_text("{}")
+    assert run("default", out, overrides=SPHERE_TINY, extra=["--resume"]) == 0
+    assert not (out / DROPPED).exists() and _tree(out) == before
 
 
 def _sigterm_in_a_finalizer():

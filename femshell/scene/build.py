@@ -76,7 +76,14 @@ def load_scene(scene, overrides=()) -> Scene:
     if not isinstance(scene, (str, Path)):
         raise SceneError(f"a scene is a .toml path, an embedded scene name or a Scene, got {type(scene).__name__}")
     text_path = Path(str(scene)).expanduser()
-    if str(scene).endswith(".toml") or text_path.is_file() or "/" in str(scene):
+    if str(scene).endswith(".toml") or text_path.is_file() or "/" in str(scene) \
+            or (text_path.is_dir() and embedded_scene_path(str(scene)) is None):
+        if text_path.is_dir():
+            hint = (f"; it holds a run: femshell run --out {scene} --resume continues it, femshell render {scene} "
+                    "draws it" if (text_path / "summary.json").exists() or (text_path / "checkpoint.npz").exists()
+                    else "")
+            raise SceneError(f"{scene}: a directory, not a scene file (a scene is a .toml file or an embedded "
+                             f"scene name; `femshell scenes` lists them){hint}")
         if not text_path.is_file():
             raise SceneError(f"{scene}: no such scene file")
         label = str(scene)
@@ -113,7 +120,7 @@ def make_mesh(scene: Scene):
         if kind == "file":
             from ..mesh import check_mesh
             from ..mesh.io import read_mesh
-            mesh = read_mesh(m["file"])
+            mesh = read_mesh(m["file"], merge_vertices=m.get("merge_vertices", False))
             report = check_mesh(mesh)   # a drawn mesh may be degenerate, tangled or misoriented: say so now
             if report.n_components > 1:
                 _check_pieces_supported(mesh, report.n_components, scene.boundary, Path(m["file"]).name)

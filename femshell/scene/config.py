@@ -213,7 +213,10 @@ class CylinderMesh:
 
 @dataclass(frozen=True)
 class FileMesh:
-    file: str = key("path", "mesh file (.vtu, .msh, .xdmf, ...), relative to the scene file", required=True)
+    file: str = key("path", "mesh file (.vtu, .msh, .xdmf, .obj, .stl, .ply, .off, ...: what meshio reads), "
+                            "relative to the scene file", required=True)
+    merge_vertices: bool = key(B, "merge vertices that coincide (an STL file stores each triangle's corners "
+                                  "separately)", False)
 
 
 #: the mesh section's class per ``kind`` (generator arguments; angles in degrees)

@@ -19,8 +19,11 @@ Policy (every file is written atomically by :mod:`femshell.io`):
   files are left alone) is given. A scene error never touches ``DIR``. With ``--overwrite``
   the earlier run waits in ``DIR/.femshell-replaced`` until the new run has its first
   checkpoint, and is put back if the new run stops before that (bad input found while
-  building the model, an initial state that cannot be made, Ctrl-C). ``scene.toml`` is
-  written once the run has its first accepted state (or has been restored from a checkpoint).
+  building the model, an initial state that cannot be made, Ctrl-C); after a ``kill -9``
+  there, the next command on ``DIR`` (``run``, also ``--resume`` without a scene, or
+  ``render``) puts it back. ``scene.toml`` is written once the run has its first accepted
+  state (or has been restored from a checkpoint); a resume without a scene reads the
+  checkpoint's own scene when ``scene.toml`` is missing.
 * A checkpoint is written after every ``output.checkpoint_every`` accepted steps (1 by
   default): ``kill -9`` loses at most the step in progress. Ctrl-C (SIGINT) and SIGTERM
   stop after writing a checkpoint of the last accepted state and a summary with status
@@ -28,6 +31,10 @@ Policy (every file is written atomically by :mod:`femshell.io`):
   until that step, its frame and its checkpoint are written (:mod:`femshell._interrupts`;
   a few seconds at most at 25 000 vertices; ``kill -9`` does not wait). One whose exception
   Python drops (raised in a garbage-collector callback) stops the run before its next step.
+* The final pictures are part of a finished run: ``summary.json`` says finished first, with
+  ``files.pictures_pending``, and lists the pictures once drawn. A run stopped before they
+  are (Ctrl-C or SIGTERM: exit code 130; ``kill -9``; a renderer that died) gets them from
+  ``--resume`` or ``femshell render DIR``, which draw only them.
 * ``--resume`` continues from the checkpoint; frames written after it are dropped and
   written again. The scene must be the one in ``DIR/scene.toml`` except for
   ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop``,
@@ -48,7 +55,10 @@ Policy (every file is written atomically by :mod:`femshell.io`):
   accepted state and exit code 1; so does an unexpected error (a bug: its traceback is
   printed for the report). Nothing non-finite is ever written.
 
-Exit codes: 0 finished (or paused by ``--max-steps``), 1 failed, 2 bad input, 130 interrupted.
+Exit codes: 0 finished (or paused by ``--max-steps``), 1 failed, 2 bad input, 130 interrupted (also
+a stop after the last step, while the results or pictures were written). A run started in the
+background by a shell script (``femshell run ... &``) inherits SIGINT ignored: Ctrl-C in the
+terminal leaves it running, SIGTERM (``kill PID``) stops it as Ctrl-C would.
 """
 
 from __future__ import annotations
@@ -59,8 +69,10 @@ import os
 import re
 import shutil
 import sys
+import threading
 import time
 import traceback
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -70,10 +82,11 @@ from ..solvers.linear import Refactorizer
 from ..solvers.newton import NewtonError, follow_load
 from .._interrupts import committing, interruptible, raise_if_interrupted, step_scope
 from .build import load_scene, make_mesh, plan, shell_parts, stretch_field, time_loop
+from .estimate import LARGE_MESH, MEM_BASE, MEM_PER_VERTEX, Estimate, expected_vertices, machine_memory
 from .schema import Scene, SceneError, continuation_start, validate
 from .text import apply_overrides, dump_toml, parse_scene
 
-__all__ = ["run_scene", "RunDirError", "RUN_FILES"]
+__all__ = ["run_scene", "RunDirError", "RUN_FILES", "recover_run_dir", "pictures_pending"]
 
 CHECKPOINT = "checkpoint.npz"
 SCENE_FILE = "scene.toml"
@@ -81,6 +94,9 @@ SERIES = "series"
 LOCK = ".femshell.lock"
 #: where --overwrite keeps the earlier run until the new one has started
 REPLACED = ".femshell-replaced"
+#: marks a complete set-aside in REPLACED; DROPPED: a replaced run being deleted
+SET_ASIDE = ".complete"
+DROPPED = ".femshell-replaced.drop"
 #: femshell's files in a run directory (what --overwrite replaces)
 RUN_FILES = (SCENE_FILE, CHECKPOINT, CHECKPOINT + ".prev", fio.SUMMARY_NAME, f"{SERIES}.pvd", "branch.csv",
              "movie.gif", "movie.mp4")
@@ -176,30 +192,36 @@ class RunDir:
         They are deleted by :meth:`start` once the new run has its first checkpoint, and put
         back by :meth:`put_back` when the new run stops before that (bad input found while
         building it, or an initial state that cannot be made): no output is lost to a run
-        that never started.
+        that never started. A marker file says the move is complete (before it, every file in
+        ``DIR`` is still the earlier run's).
         """
         aside = self.path / REPLACED
         aside.mkdir()
         for p in self._run_paths():
             (aside / p).parent.mkdir(exist_ok=True)
             (self.path / p).rename(aside / p)
+        fio.atomic_write_text(aside / SET_ASIDE, "")
 
     def put_back(self):
         """Undo :meth:`set_aside`: delete what the new run wrote, restore the earlier run."""
         aside = self.path / REPLACED
         if not aside.is_dir():
             return
-        for p in self._run_paths():
-            (self.path / p).unlink()
+        if (aside / SET_ASIDE).exists():        # else the set-aside was cut short: DIR holds only the earlier run
+            for p in self._run_paths():
+                (self.path / p).unlink()
         for p in self._run_paths(aside):
             (self.path / p).parent.mkdir(exist_ok=True)
             (aside / p).rename(self.path / p)
         shutil.rmtree(aside)
 
     def recover(self):
-        """An earlier run left in ``.femshell-replaced`` by a process killed while it started an
-        --overwrite: put it back (the new run never reached its first checkpoint, else the
-        directory would have been dropped), and say so."""
+        """Finish what a process killed while it started an ``--overwrite`` left: an earlier run in
+        ``.femshell-replaced`` is put back (the new run never reached :meth:`start`), a replaced run
+        whose deletion was cut short is deleted. Called with the lock held; returns what was done
+        (None: nothing)."""
+        if (self.path / DROPPED).is_dir():
+            shutil.rmtree(self.path / DROPPED)
         if not (self.path / REPLACED).is_dir():
             return None
         self.put_back()
@@ -207,11 +229,15 @@ class RunDir:
                 f"{REPLACED}/")
 
     def start(self, scene):
-        """The new run has its first accepted state: store its scene, drop a replaced run."""
+        """The new run has its first accepted state: store its scene, drop a replaced run (renamed
+        first, so that a kill during the deletion leaves nothing to put back)."""
         fio.atomic_write_text(self.path / SCENE_FILE, "# the scene as run by femshell (every default filled in)\n"
                                                       + dump_toml(scene.data))
         if (self.path / REPLACED).is_dir():
-            shutil.rmtree(self.path / REPLACED)
+            if (self.path / DROPPED).is_dir():
+                shutil.rmtree(self.path / DROPPED)
+            os.replace(self.path / REPLACED, self.path / DROPPED)
+            shutil.rmtree(self.path / DROPPED)
 
     def remove_temporaries(self):
         """Delete the temporary files that a writer killed mid-write left next to femshell's files
@@ -298,14 +324,21 @@ class Progress:
         self.say(f"{text}  [{tail}]")
 
     def remaining(self):
+        """Wall seconds left, extrapolated from the last steps; None where that means nothing: the steps
+        seen moved the run by less than MIN_FRACTION of its length (tiny steps, a huge t_final: their rate
+        says little about the steps to come), or the figure exceeds MAX_ESTIMATE_S."""
         if len(self.history) < 2:
             return None
         (w0, f0), (w1, f1) = self.history[0], self.history[-1]
         if f1 >= 1.0:
             return 0.0
-        if not f1 > f0 or w1 <= w0:
+        if not f1 - f0 >= self.MIN_FRACTION or w1 <= w0:
             return None
-        return (1.0 - f1) * (w1 - w0) / (f1 - f0)
+        left = (1.0 - f1) * (w1 - w0) / (f1 - f0)
+        return left if left <= self.MAX_ESTIMATE_S else None
+
+    MIN_FRACTION = 1e-3
+    MAX_ESTIMATE_S = 10 * 86400.0
 
 
 # ----------------------------------------------------------------------------- output fields
@@ -483,8 +516,11 @@ class BaseRunner:
     def extra_meta(self) -> dict:
         return {}
 
-    def run(self, resume_from=None, changes=()) -> int:
-        """Run (or resume from ``resume_from``, with the resumable scene keys ``changes`` changed) to the end."""
+    def run(self, resume_from=None, changes=(), finished=None) -> int:
+        """Run (or resume from ``resume_from``, with the resumable scene keys ``changes`` changed) to the end.
+
+        ``finished``: the summary of a finished run whose final pictures are missing; only they are drawn.
+        """
         rdp = self.rd.path
         self.writer = fio.TimeSeriesWriter(rdp, self.mesh, SERIES, resume=resume_from is not None)
         if resume_from is not None:
@@ -510,63 +546,99 @@ class BaseRunner:
             self.write_frame()
             self.checkpoint()
             self.rd.start(self.scene)
-        code = 0
         with interruptible():
-            try:
-                self.loop()
-                raise_if_interrupted()      # a stop dropped in the last step (the loop ended without a check)
-                if self.status == "running":
-                    self.status = self.final_status()
-            except StepFailure as exc:
-                self.status, self.message = "failed", str(exc)
-                code = 1
-            except Exception as exc:        # a bug, not bad input: keep the last accepted state and say so
-                traceback.print_exc()
-                self.settle()
-                self.status, self.message = "failed", (f"internal error after step {self.step} ({type(exc).__name__}: "
-                                                       f"{exc}); please report it with the traceback above")
-                code = 1
-            except KeyboardInterrupt:
-                self.settle()
-                self.status = "interrupted"
-                # the scene stored in --out already holds any --set overrides of this run
-                self.message = f"interrupted after step {self.step}; continue with: femshell run --out {rdp} --resume"
-                code = 130
+            code = self._steps() if finished is None else self._as_finished(finished)
             self.release()
-            # the last accepted state, whatever happened. A Ctrl-C from here on lets the frame, checkpoint and
-            # summary be written (they must agree) and skips only the pictures. The summary comes before the
-            # pictures: a renderer that dies natively (VTK without a usable OpenGL) must not leave a finished
-            # run without one; it is written again with the pictures' names
-            late = False
+            code = self._final_pictures(code, late=not self._write_results())
+        self.report(code)
+        return code
+
+    def _steps(self) -> int:
+        """The steps to the end (or a failure, a stop): the exit code so far, the status set."""
+        try:
+            self.loop()
+            raise_if_interrupted()      # a stop dropped in the last step (the loop ended without a check)
+            if self.status == "running":
+                self.status = self.final_status()
+        except StepFailure as exc:
+            self.status, self.message = "failed", str(exc)
+            return 1
+        except Exception as exc:        # a bug, not bad input: keep the last accepted state and say so
+            traceback.print_exc()
+            self.settle()
+            self.status, self.message = "failed", (f"internal error after step {self.step} ({type(exc).__name__}: "
+                                                   f"{exc}); please report it with the traceback above")
+            return 1
+        except KeyboardInterrupt:
+            self.settle()
+            self.status = "interrupted"
+            # the scene stored in --out already holds any --set overrides of this run
+            self.message = (f"interrupted after step {self.step}; continue with: femshell run --out {self.rd.path} "
+                            "--resume")
+            return 130
+        return 0
+
+    def _as_finished(self, summary) -> int:
+        """A finished run restored to draw its missing final pictures: its status and message as they were."""
+        self.status, self.message = summary["status"], summary.get("message", "")
+        return 0
+
+    def _write_results(self) -> bool:
+        """The last accepted state's frame, checkpoint and summary, whatever happened; they must agree, so a
+        Ctrl-C waits for them. The summary comes before the pictures (a renderer that dies natively must not
+        leave a finished run without one) and says that they are still to be drawn. False: a Ctrl-C arrived."""
+        try:
+            with committing():
+                if self.status not in ("interrupted", "failed", "paused") and self.last_frame_step != self.step:
+                    self.write_frame()
+                if self.last_ckpt_step != self.step:
+                    self.checkpoint()
+                self.write_summary([])
+        except KeyboardInterrupt:
+            return False
+        return True
+
+    def _final_pictures(self, code, late) -> int:
+        """Draw a finished run's final pictures and list them in the summary; the exit code.
+
+        A stop (Ctrl-C, SIGTERM) while they are drawn, or before (``late``), has one outcome: the
+        run stays finished, the summary says its pictures are still to be drawn
+        (``files.pictures_pending``; ``--resume`` or ``femshell render`` draws them), exit code 130.
+        A signal that the renderer swallows or turns into another error (an ImportError from VTK)
+        counts as the stop it is. A renderer's error is a warning: the run stays finished.
+        """
+        if not (self.status in FINAL and self.out.pictures):
+            return code if not late else (code or 130)
+        pics, drawn = [], False
+        if not late:
             try:
-                with committing():
-                    if self.status not in ("interrupted", "failed", "paused") and self.last_frame_step != self.step:
-                        self.write_frame()
-                    if self.last_ckpt_step != self.step:
-                        self.checkpoint()
-                    self.write_summary([])
+                raise_if_interrupted()
+                pics = self.pictures()
+                if self.out.movie:
+                    pics += self._movie()
+                raise_if_interrupted()
+                drawn = True
             except KeyboardInterrupt:
                 late = True
-            pics = []
-            if self.status in FINAL and self.out.pictures and not late:
+            except Exception as exc:
                 try:
-                    pics = self.pictures()
-                    if self.out.movie:
-                        pics += self._movie()
+                    raise_if_interrupted()
+                    self.p.say(f"warning: pictures failed: {type(exc).__name__}: {exc} (femshell run --out "
+                               f"{self.rd.path} --resume tries again)")
                 except KeyboardInterrupt:
                     late = True
-                except Exception as exc:  # pictures must not lose a finished run
-                    self.p.say(f"warning: pictures failed: {type(exc).__name__}: {exc}")
-            if pics:
-                try:
-                    with committing():
-                        self.write_summary(pics)
-                except KeyboardInterrupt:
-                    late = True
-            if late and self.status in FINAL and self.out.pictures:
-                self.p.failure(f"warning: interrupted while writing the results: pictures skipped (femshell render "
-                               f"{rdp} makes them)")
-        self.report(code)
+        if drawn:
+            try:
+                with committing():
+                    self.write_summary(pics)
+            except KeyboardInterrupt:
+                self.p.failure("interrupted as the run ended; its results and pictures are complete")
+                return code or 130
+        if late:
+            self.p.failure(f"interrupted while drawing the final pictures: the run is finished ({self.status}, "
+                           f"{self.step} steps) but its pictures are not drawn; femshell run --out {self.rd.path} "
+                           f"--resume (or femshell render {self.rd.path}) draws them")
+            return code or 130
         return code
 
     def resume_text(self):
@@ -615,7 +687,8 @@ class BaseRunner:
             "final": _clean({**fin, **res}),
             "files": {"series": f"{SERIES}.pvd", "frames": len(self.writer), "checkpoint": CHECKPOINT,
                       "scene": SCENE_FILE,
-                      "pictures": [str(Path(p).relative_to(self.rd.path)) for p in pics]},
+                      "pictures": [str(Path(p).relative_to(self.rd.path)) for p in pics],
+                      "pictures_pending": bool(self.status in FINAL and self.out.pictures and not pics)},
             "femshell_version": _version(),
         }
         summary["files"].update(self.extra_files())
@@ -790,8 +863,9 @@ class TimeRunner(BaseRunner):
         pat = fin["pattern"]
         extra = ""
         if pat["n_spots"]:
-            extra = (f", spot radius {pat['spot_radius']:.3g}, spacing {pat['spacing']:.3g}" if pat["spot_radius"]
-                     else "")
+            # a spacing between spots needs two (one spot's is round-off of its share minus itself)
+            spacing = f"{pat['spacing']:.3g}" if pat["n_spots"] > 1 and pat["spacing"] is not None else "–"
+            extra = f", spot radius {pat['spot_radius']:.3g}, spacing {spacing}" if pat["spot_radius"] else ""
         lines = [f"t = {fin['t']:.6g}: max c {fin['max_c']:.3g}, max H {fin['max_H']:.3g}; pattern: {pat['n_spots']} "
                  f"region(s) with c > c* ({pat['kind']}, {pat['n_ridges']} ridges), {100 * pat['fraction_patterned']:.1f} % "
                  f"of the area{extra}"]
@@ -1533,15 +1607,24 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
     before anything is computed or any file in ``out`` is touched.
     """
     stream = stream or sys.stdout
+    if out is not None and not str(out).strip():
+        raise RunDirError("--out is empty: give the run's directory (or leave --out out for ./<scene name>-out)")
     if resume and overwrite:
         raise RunDirError("--resume and --overwrite contradict each other: choose one")
+    if out and not dry_run:                 # before the scene is read from it (a resume without a scene)
+        recover_run_dir(out, stream=sys.stderr if quiet else stream)
     if scene is None:
         if not (resume and out):
             raise RunDirError("give a SCENE (a .toml file or an embedded scene name; see `femshell scenes`)")
         p = Path(out) / SCENE_FILE
-        if not p.is_file():
+        text = p.read_text(encoding="utf-8") if p.is_file() else _checkpoint_scene(Path(out))
+        if text is None and not RunDir(Path(out)).has_run():
+            raise RunDirError(f"{out}: nothing to resume (no femshell run there: a run stopped before its first "
+                              "accepted state leaves none); start it with femshell run SCENE --out "
+                              f"{out}, without --resume")
+        if text is None:
             raise RunDirError(f"{out}: no {SCENE_FILE} to resume from; give the SCENE too")
-        raw = parse_scene(p.read_text(encoding="utf-8"), str(p))
+        raw = parse_scene(text, str(p))
         raw = apply_overrides(raw, overrides, str(p), note=False)   # changes on resume go to setting_changes
         sc = validate(raw, name=raw.get("name") or Path(out).name, label=str(p), source=None, base_dir=Path(out))
     else:
@@ -1552,16 +1635,15 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
     if dest.exists() and not dest.is_dir():
         raise RunDirError(f"--out {dest} is a file, not a directory: choose a directory")
     if dry_run:
-        lines, _ = plan(sc)
+        lines, _ = plan(sc, sized_mesh(sc, stream))
+        lines = with_estimate(lines)
         lines.append(f"  out        {dest}/ (nothing computed, nothing written: --dry-run)")
         print("\n".join(lines), file=stream)
         return 0
 
     rd = RunDir(dest)
-    if (rd.path / REPLACED).is_dir():
-        with rd.lock():                     # (a live run there is refused by the lock)
-            print(rd.recover(), file=sys.stderr if quiet else stream)
-    resume_from, changes = None, []
+    recover_run_dir(dest, stream=sys.stderr if quiet else stream)
+    resume_from, changes, finished = None, [], None
     if rd.has_run() and not resume and not overwrite:
         raise RunDirError(f"{rd.path} already holds {rd.describe()}; use --resume to continue it, --overwrite to "
                           "replace it (femshell's files there are replaced), or choose another --out")
@@ -1604,8 +1686,11 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
                                   "putting back its scene.toml if that was edited; or start a new run with "
                                   "--overwrite or another --out)")
         summ = rd.summary()
-        if summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step") \
-                and not _extends(summ, sc):
+        done = (summ and summ.get("status") in FINAL and summ.get("steps") == resume_from[1].get("step")
+                and not _extends(summ, sc))
+        if done and pictures_pending(rd.path) and sc.output.pictures:
+            finished = summ                 # stopped before its final pictures: only they are drawn now
+        elif done:
             if sc.kind != "time":
                 how = ("a finished continuation or load stepping is not extended: start a new run with --overwrite "
                        "or another --out")
@@ -1619,7 +1704,8 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
                   f"nothing to do ({how})", file=stream)
             return 0
 
-    mesh = make_mesh(sc)                    # scene errors of mesh files come before the directory is touched
+    # scene errors of mesh files come before the directory is touched
+    mesh = sized_mesh(sc, None if quiet else stream)
     if resume_from is not None:
         n_ck = resume_from[1].get("n_vertices")
         fp = resume_from[1].get("mesh")
@@ -1647,31 +1733,126 @@ def run_scene(scene=None, out=None, resume=False, dry_run=False, *, overwrite=Fa
     progress = Progress(stream, interval=sc.output.progress_interval, quiet=quiet)
     # SIGTERM as Ctrl-C from here on: a run stopped while it starts still puts an earlier run back
     with interruptible():
-        return _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose, changes)
+        return _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose, changes,
+                           finished)
 
 
-def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose, changes=()):
+def sized_mesh(sc, stream=None):
+    """The scene's mesh, after its estimated cost (:mod:`.estimate`) was checked against the machine's
+    memory: a run that cannot fit is refused (SceneError, with the numbers) before gmsh starts, a large
+    mesh is announced on ``stream`` with its estimate and said to progress while gmsh works."""
+    n = expected_vertices({"kind": sc.mesh_kind, **asdict(sc.mesh)})
+    if n is not None:
+        _refuse_beyond_memory(sc, n)
+    if n is None or n < LARGE_MESH or stream is None:
+        mesh = make_mesh(sc)
+    else:
+        est = Estimate(n)
+        print(f"meshing about {n} vertices with gmsh (~{est.text()}) ...", file=stream, flush=True)
+        t0 = time.perf_counter()
+        with _heartbeat(stream, "  still meshing", t0):
+            mesh = make_mesh(sc)
+        print(f"  meshed: {mesh.n_vertices} vertices in {time.perf_counter() - t0:.0f} s", file=stream, flush=True)
+    if n is None:
+        _refuse_beyond_memory(sc, mesh.n_vertices)
+    return mesh
+
+
+def _refuse_beyond_memory(sc, n):
+    est = Estimate(n)
+    total, avail = machine_memory()
+    if total is not None and est.memory > total:
+        raise SceneError(f"{sc.label}: [mesh] a mesh of about {n} vertices needs about {est.memory / 1e9:.3g} GB of "
+                         f"memory (estimate: {MEM_BASE / 1e9:.2g} GB + {MEM_PER_VERTEX / 1e3:.0f} kB per vertex), more "
+                         f"than this machine's {total / 1e9:.3g} GB ({(avail or 0) / 1e9:.3g} GB available): at most "
+                         f"about {int((total - MEM_BASE) / MEM_PER_VERTEX)} vertices fit; choose a coarser mesh")
+
+
+def with_estimate(lines: list) -> list:
+    """The plan's lines with the run's estimated cost after the mesh line."""
+    i = next((k for k, line in enumerate(lines) if line.startswith("  mesh ")), None)
+    m = re.search(r": (\d+) vertices", lines[i]) if i is not None else None
+    if m is None:
+        return lines
+    return lines[:i + 1] + [f"  estimate   {Estimate(int(m.group(1))).text()}"] + lines[i + 1:]
+
+
+@contextlib.contextmanager
+def _heartbeat(stream, text, t0, every=15.0):
+    """Print ``text`` with the seconds since ``t0`` every ``every`` seconds while the block runs (gmsh
+    releases the GIL while it meshes)."""
+    done = threading.Event()
+
+    def beat():
+        while not done.wait(every):
+            print(f"{text} ({time.perf_counter() - t0:.0f} s)", file=stream, flush=True)
+
+    th = threading.Thread(target=beat, daemon=True)
+    th.start()
+    try:
+        yield
+    finally:
+        done.set()
+        th.join()
+
+
+def _checkpoint_scene(path: Path):
+    """The scene TOML kept in ``path``'s checkpoint (a run killed before it wrote scene.toml), or None."""
+    try:
+        return fio.load_checkpoint(path / CHECKPOINT)[1].get("scene_toml")
+    except (fio.CheckpointError, FileNotFoundError):
+        return None
+
+
+def recover_run_dir(path, stream=None, *, busy_ok=False):
+    """Put back (or finish replacing) what an ``--overwrite`` killed while it started left in ``path``
+    (:meth:`RunDir.recover`), saying so on ``stream``. Every command on a run directory calls it first.
+    A directory in use by a live run is refused (:class:`RunDirError`), or left alone with ``busy_ok``."""
+    rd = RunDir(path)
+    if not ((rd.path / REPLACED).is_dir() or (rd.path / DROPPED).is_dir()):
+        return
+    try:
+        with rd.lock():
+            msg = rd.recover()
+    except RunDirError:
+        if busy_ok:
+            return
+        raise
+    if msg:
+        print(msg, file=stream or sys.stderr)
+
+
+def pictures_pending(path) -> bool:
+    """Whether the run in ``path`` is finished but its final pictures are not drawn (a stop while they were)."""
+    summ = RunDir(path).summary() or {}
+    return bool(summ.get("status") in FINAL and (summ.get("files") or {}).get("pictures_pending"))
+
+
+def _run_locked(sc, mesh, rd, progress, resume, resume_from, overwrite, max_steps, verbose, changes=(),
+                finished=None):
     quiet = progress.quiet
     with rd.lock():
         if overwrite:
             rd.set_aside()                  # put back below if the new run does not start
         try:
             if resume_from is None:
-                head, _ = plan(sc, mesh)
+                head = with_estimate(plan(sc, mesh)[0])
                 for line in head:
                     progress.say(line)
                 progress.say(f"  out        {rd.path}/")
+            elif finished is not None:
+                progress.say(f"scene '{sc.name}': the run in {rd.path}/ is finished; drawing its final pictures")
             elif resume and not quiet:
                 progress.say(f"scene '{sc.name}': resuming the run in {rd.path}/")
             if resume_from is not None and changes:
                 progress.say("  changed since the run's last invocation: "
                              + ", ".join(f"{c['key']} {c['from']!r} -> {c['to']!r}" for c in changes))
             runner = RUNNERS[sc.kind](sc, mesh, rd, progress=progress, max_steps=max_steps, verbose=verbose)
-            return runner.run(resume_from, changes)
+            return runner.run(resume_from, changes, finished)
         except StepFailure as exc:          # the initial state could not be made: nothing to checkpoint
             progress.failure(f"failed: {exc}")
             aside = rd.path / REPLACED
-            earlier = overwrite and aside.is_dir() and any(aside.iterdir())
+            earlier = overwrite and aside.is_dir() and bool(rd._run_paths(aside))
             if overwrite:
                 rd.put_back()
             if earlier:

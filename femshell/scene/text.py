@@ -72,8 +72,19 @@ def parse_override(text: str):
     return parts, value
 
 
+def _merge_tables(old: dict, new: dict) -> dict:
+    """``old`` with ``new``'s keys set (tables inside merged the same way)."""
+    out = dict(old)
+    for k, v in new.items():
+        out[k] = _merge_tables(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
 def apply_overrides(raw: dict, overrides, label="scene", *, note=True) -> dict:
     """A copy of ``raw`` with ``overrides`` (list of "key=value" or (parts, value)) applied.
+
+    A table value merges into the table it replaces (``material={E=2}`` sets E and keeps the
+    section's other keys), as ``material.E=2`` does.
 
     With ``note`` the description gets the overrides appended ("[--set mesh.radius=15]"), so that
     the scene written with a run, its summary and its header do not describe the file's values alone.
@@ -113,7 +124,10 @@ def apply_overrides(raw: dict, overrides, label="scene", *, note=True) -> dict:
             errors.append(f"--set {'.'.join(parts)}: give the index and key of the list entry, "
                           f"e.g. {'.'.join(parts[:-1] + ['0', last])}")
             continue
-        where[last] = value
+        if isinstance(value, dict) and isinstance(where.get(last), dict):
+            where[last] = _merge_tables(where[last], value)    # a table sets its keys, the others are kept
+        else:
+            where[last] = value
         if len(parts) == 2 and parts[0] == "mesh":   # the resolution given last wins
             other = {"n_vertices": "edge_length", "edge_length": "n_vertices"}.get(last)
             if other:
