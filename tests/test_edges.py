@@ -86,7 +86,7 @@ def test_a_mesh_beyond_the_machines_memory_is_refused_before_meshing(monkeypatch
 def test_the_estimate_is_printed_and_large_meshes_say_they_progress(monkeypatch, capsys):
     assert main(["run", "default", "--set", "mesh.n_vertices=300", "--dry-run"]) == 0
     out = capsys.readouterr().out
-    assert "  estimate   ~" in out and "per Newton iteration" in out and "meshing about" not in out
+    assert "  estimate   ~" in out and "per time step" in out and "meshing about" not in out
     monkeypatch.setattr(runner, "LARGE_MESH", 200)
     assert main(["run", "default", "--set", "mesh.n_vertices=300", "--dry-run"]) == 0
     out = capsys.readouterr().out

@@ -5,15 +5,15 @@ an equilateral triangle's for ``edge_length``; :func:`expected_vertices`); memor
 fitted to runs of the embedded ``default`` scene (sphere, time loop, neo-Hookean membrane) on
 2 cores (:class:`Estimate`):
 
-    memory          ≈ MEM_BASE + MEM_PER_VERTEX · N               (peak of the run, bytes)
-    meshing         ≈ MESH_S_PER_VERTEX · N                        (gmsh, seconds)
-    Newton iteration ≈ NEWTON_S_PER_VERTEX · N^NEWTON_EXPONENT    (Hessian + LDLᵀ, seconds, idle cores)
+    memory    ≈ MEM_BASE + MEM_PER_VERTEX · N            (peak resident memory of the run, bytes)
+    meshing   ≈ MESH_S_PER_VERTEX · N                     (gmsh, seconds)
+    time step ≈ STEP_S_PER_VERTEX · N^STEP_EXPONENT      (a step of the time loop, idle cores, seconds)
 
-A time step takes one Newton iteration or a few (or none: a quasi-Newton start on the held
-factor), the initial equilibrium some 70. They say whether a run fits and what order it
-takes: the memory within about 20 %, the times within a factor of two on idle cores and
-several times longer on cores other jobs share. :func:`machine_memory` reads the physical and
-the available memory (Linux /proc/meminfo).
+The memory is fitted to 2 000 and 8 000 vertices and errs high beyond; the times are those of
+idle cores (on cores other jobs share, several times longer) and of steps of a few
+quasi-Newton iterations (a nucleating spot needs more). They say whether a run fits and its
+order of cost. :func:`machine_memory` reads the physical and the available memory (Linux
+/proc/meminfo).
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ from ..mesh.generators import AREA_FACTOR, AREA_FACTOR_FLAT, BOUNDARY_LINEAR, SP
 __all__ = ["expected_vertices", "estimate", "machine_memory", "Estimate"]
 
 # fitted to the default scene (sphere, time loop, neo-Hookean membrane); see the module docstring
-MEM_BASE = 0.83e9
-MEM_PER_VERTEX = 55e3
+MEM_BASE = 0.73e9
+MEM_PER_VERTEX = 105e3
 MESH_S_PER_VERTEX = 3.4e-4
-NEWTON_S_PER_VERTEX = 4.2e-5
-NEWTON_EXPONENT = 1.1
+STEP_S_PER_VERTEX = 2.7e-5
+STEP_EXPONENT = 1.2
 #: a run this large or larger prints progress while gmsh meshes
 LARGE_MESH = 50_000
 
@@ -83,18 +83,18 @@ def expected_vertices(mesh: dict) -> int | None:
 
 
 class Estimate:
-    """Peak memory (bytes), meshing time and time of a Newton iteration (seconds) of a run on ``n_vertices``."""
+    """Peak memory (bytes), meshing time and time of a step (seconds) of a run on ``n_vertices``."""
 
     def __init__(self, n_vertices: int):
         self.n_vertices = int(n_vertices)
         self.memory = MEM_BASE + MEM_PER_VERTEX * n_vertices
         self.meshing_s = MESH_S_PER_VERTEX * n_vertices
-        self.newton_s = NEWTON_S_PER_VERTEX * n_vertices ** NEWTON_EXPONENT
+        self.step_s = STEP_S_PER_VERTEX * n_vertices ** STEP_EXPONENT
 
     def text(self) -> str:
-        return (f"~{_bytes(self.memory)} memory, ~{_seconds(self.newton_s)} per Newton iteration (a time step "
-                f"takes 0-3, the initial equilibrium ~70), meshing ~{_seconds(self.meshing_s)} (estimated from "
-                f"{self.n_vertices} vertices on idle cores; slower when other jobs share them)")
+        return (f"~{_bytes(self.memory)} memory, ~{_seconds(self.step_s)} per time step, meshing "
+                f"~{_seconds(self.meshing_s)} (estimated from {self.n_vertices} vertices, for idle cores: several "
+                "times longer when other jobs share them)")
 
 
 def estimate(n_vertices: int) -> Estimate:
