@@ -408,7 +408,7 @@ def _time_sections(ck, raw, data, kind, law):
         if data["initial"].get("kind") in ("spot", "spots") and data["initial"].get("amplitude") is None and beta == 0:
             ck.err("[initial] amplitude is required when [chemistry] beta = 0 (its default c_max = w Hs / beta "
                    "is infinite)")
-    elif law == "contractility" and kind is not None:     # an unknown kind is named once, by _solver
+    elif law == "contractility" and kind is not None:     # an unknown kind is named once, where [solver] is read
         ck.err(f"[growth] law = \"contractility\" needs the chemistry of solver.kind = \"time\" "
                f"(this scene has kind = \"{kind}\"); use law = \"uniform\" or \"inner_region\"")
 
