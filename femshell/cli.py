@@ -133,7 +133,7 @@ def _parser():
     d.add_argument("--fps", type=_positive("--fps"), default=5.0, help="movie frames per second (at most 50 for a GIF)")
     d.add_argument("--cmap", default="viridis", help="matplotlib colour map")
     d.add_argument("--no-movie", action="store_true", help="pictures only")
-    p.subcommands = {"mesh": m, "validate": v, "run": r, "scenes": sc, "render": d}     # for their usage errors
+    p.subcommands = sub.choices      # name -> parser, for their usage errors
     return p
 
 
