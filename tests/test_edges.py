@@ -109,9 +109,10 @@ def test_the_heartbeat_prints_while_its_block_runs():
 def test_expected_vertices_follow_the_generators():
     from femshell.mesh import disk, plate, sphere
 
-    for section, make in (({"kind": "sphere", "radius": 15.0, "edge_length": 1.5}, lambda: sphere(15.0, edge_length=1.5)),
-                          ({"kind": "plate", "lx": 2.0, "ly": 1.0, "edge_length": 0.1}, lambda: plate(2.0, 1.0, 0.1)),
-                          ({"kind": "disk", "radius": 5.0, "edge_length": 0.5}, lambda: disk(5.0, 0.5))):
+    cases = (({"kind": "sphere", "radius": 15.0, "edge_length": 1.5}, lambda: sphere(15.0, edge_length=1.5)),
+             ({"kind": "plate", "lx": 2.0, "ly": 1.0, "edge_length": 0.1}, lambda: plate(2.0, 1.0, 0.1)),
+             ({"kind": "disk", "radius": 5.0, "edge_length": 0.5}, lambda: disk(5.0, 0.5)))
+    for section, make in cases:
         n = est.expected_vertices(section)
         assert abs(n - make().n_vertices) < 0.15 * n, section
     assert est.expected_vertices({"kind": "sphere", "n_vertices": 1234}) == 1234

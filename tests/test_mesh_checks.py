@@ -390,7 +390,9 @@ def test_mobius_strip_is_non_orientable():
         check_mesh(m)
     # it was told to use orient_consistently, which refuses it (issue 65, item 6)
     assert "non-orientable" in str(err.value) and "orient_consistently" not in str(err.value)
-    flipped = SurfaceMesh(plate().points, plate().triangles[[0, 1]][:, [0, 2, 1]].tolist() + plate().triangles[2:].tolist())
+    tri = plate().triangles.copy()
+    tri[:2] = tri[:2, [0, 2, 1]]
+    flipped = SurfaceMesh(plate().points, tri)
     with pytest.raises(MeshError, match="fix with orient_consistently"):      # an orientable one still is
         check_mesh(flipped)
 

@@ -149,7 +149,8 @@ def _ascii_stl(path, points, triangles, jitter):
     lines = ["solid s"]
     for t in triangles:
         lines += ["facet normal 0 0 0", "outer loop"]
-        lines += [f"vertex {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in points[t] + jitter * rng.uniform(-1, 1, (3, 3))]
+        corners = points[t] + jitter * rng.uniform(-1, 1, (3, 3))
+        lines += [f"vertex {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in corners]
         lines += ["endloop", "endfacet"]
     path.write_text("\n".join(lines + ["endsolid s", ""]))
 
