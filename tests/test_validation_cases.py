@@ -186,10 +186,11 @@ def test_a_radius_sweep_carries_a_state_to_equilibria_of_the_larger_disks_and_re
     import numpy as np
 
     from femshell.validation import disk_wrinkles as dw
+    from femshell.validation.disk import branches
 
     a = dw.Disk(1.0, 3.0, 3, R1=15.0, law="neo-hookean")
     a.problem.set_parameter(0.02)
-    u0 = dw.minimize(a.problem, a.model.initial_unknowns(), stable=True, log=None).u
+    u0 = branches.minimize(a.problem, a.model.initial_unknowns(), stable=True, log=None).u
     ck = tmp_path / "sweep.npz"
     rows, states = dw.sweep_radius(a, u0, [6.0, 12.0], eps=0.02, checkpoint=ck, meta={"case": "test"})
     n_pos = 3 * a.mesh.n_vertices
@@ -200,7 +201,7 @@ def test_a_radius_sweep_carries_a_state_to_equilibria_of_the_larger_disks_and_re
         ub = np.where(pos, s * u, u)
         assert b.relative_residual(ub, 0.02) <= 10 * r["residual"] + 1e-10 and r["residual"] <= dw.EQUILIBRIUM_RTOL
         assert r["energy"] == pytest.approx(b.model.energy(ub), rel=1e-12) and r["result"]
-    monkeypatch.setattr(dw, "minimize", lambda *a, **k: pytest.fail("a saved step was solved again"))
+    monkeypatch.setattr(branches, "minimize", lambda *a, **k: pytest.fail("a saved step was solved again"))
     again, states2 = dw.sweep_radius(a, u0, [6.0, 12.0], eps=0.02, checkpoint=ck, meta={"case": "test"})
     assert again == rows and np.array_equal(states2, states)
     with pytest.raises(ValueError, match="radii"):
@@ -244,6 +245,7 @@ def test_disk_end_states_carried_to_the_neighbouring_radius_reach_its_own_equili
     import numpy as np
 
     from femshell.validation import disk_wrinkles as dw
+    from femshell.validation.disk import branches
 
     cfg = dict(dw.LEVELS["quick"], pushes=1)
     solved = {}
@@ -262,7 +264,7 @@ def test_disk_end_states_carried_to_the_neighbouring_radius_reach_its_own_equili
         assert solved[c][2]["result"] and carried["result"] and carried["count"] == rec["count"] == 0
         assert carried["energy"] == pytest.approx(solved[c][2]["energy"], rel=1e-9)
         assert rec["counted_from"] is None and np.array_equal(u, solved[c][1])
-    monkeypatch.setattr(dw, "minimize", lambda *a, **k: pytest.fail("a saved carried state was solved again"))
+    monkeypatch.setattr(branches, "minimize", lambda *a, **k: pytest.fail("a saved carried state was solved again"))
     again = dw.exchange_states(cfg, solved, tmp_path)
     assert all(again[c][2]["carried"] == out[c][2]["carried"] for c in cfg["cases"])
 
@@ -331,6 +333,7 @@ def test_disk_cases_solved_in_worker_processes_are_checkpointed_and_read_back(tm
 
     from femshell.io import load_checkpoint, save_checkpoint
     from femshell.validation import disk_wrinkles as dw
+    from femshell.validation.disk import cases
 
     cfg = {"cases": [(2.0, 3.0, 3), (2.0, 4.0, 3)], "refine_inside": False, "law": "svk", "outer_factor": 5.0,
            "pushes": 2}
@@ -344,7 +347,7 @@ def test_disk_cases_solved_in_worker_processes_are_checkpointed_and_read_back(tm
     np.testing.assert_allclose(u, here[1], rtol=0, atol=1e-9 * np.abs(u).max())
     assert rec["count"] == here[2]["count"] and rec["result"] == here[2]["result"]
     assert rec["residual"] <= dw.EQUILIBRIUM_RTOL and d.n_vertices == here[0].n_vertices
-    monkeypatch.setattr(dw, "follow", lambda *a, **k: pytest.fail("a saved case was solved again"))
+    monkeypatch.setattr(cases, "follow", lambda *a, **k: pytest.fail("a saved case was solved again"))
     again = dw.solve_cases(cfg, tmp_path)
     assert all(np.array_equal(again[c][1], solved[c][1]) for c in cfg["cases"])
     with pytest.raises(ValueError, match="pushes"):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from femshell.io import load_checkpoint, save_checkpoint
-from femshell.validation import disk_wrinkles as dw
+from femshell.validation.disk import branches
 from femshell.validation import wrinkle_scaling as ws
 from femshell.validation.disk_wrinkles import Disk
 
@@ -75,7 +75,7 @@ def test_seeded_state_resumes_from_its_checkpoint(tmp_path, monkeypatch):
     d = Disk(1.0, ws.R2, 4)
     whole, _ = ws.seeded_state(d, 0.2, 0.1)
     ck = tmp_path / "dome.npz"
-    solve, calls = dw.minimize, []   # the ramp's solves (disk_wrinkles.stable_state)
+    solve, calls = branches.minimize, []   # the ramp's solves (branches.stable_state)
 
     def interrupted(*a, **k):
         calls.append(1)
@@ -83,17 +83,17 @@ def test_seeded_state_resumes_from_its_checkpoint(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return solve(*a, **k)
 
-    monkeypatch.setattr(dw, "minimize", interrupted)
+    monkeypatch.setattr(branches, "minimize", interrupted)
     with pytest.raises(KeyboardInterrupt):
         ws.seeded_state(d, 0.2, 0.1, checkpoint=ck)
-    monkeypatch.setattr(dw, "minimize", solve)
+    monkeypatch.setattr(branches, "minimize", solve)
     resumed, _ = ws.seeded_state(d, 0.2, 0.1, checkpoint=ck)
     assert np.abs(resumed - whole).max() <= 1e-8 * np.abs(whole).max()
 
     def no_solve(*a, **k):
         raise AssertionError("a finished ramp was solved again")
 
-    monkeypatch.setattr(dw, "minimize", no_solve)
+    monkeypatch.setattr(branches, "minimize", no_solve)
     again, _ = ws.seeded_state(d, 0.2, 0.1, checkpoint=ck)
     np.testing.assert_array_equal(again, resumed)
     with pytest.raises(ValueError, match="another run"):

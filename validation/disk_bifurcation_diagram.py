@@ -1,8 +1,8 @@
 r"""Bifurcation diagram of the paper's disk test: growth ε on the x-axis, mode shapes at the branch points.
 
-The disk of design.md 1.6 (free disk, inner circle r < R2 grown by the linear stretch 1 + ε and
+The disk of theory §1.6 (free disk, inner circle r < R2 grown by the linear stretch 1 + ε and
 thinned to h/(1 + ε)²) is followed exactly as the ``disk-wrinkles`` validation case does
-(:func:`femshell.validation.disk_wrinkles.follow`): pseudo-arclength continuation of the flat
+(:func:`femshell.validation.disk.branches.follow`): pseudo-arclength continuation of the flat
 state in ε with the inertia of the Hessian at every point, the loss of stability bisected on the
 inertia, branch switching along the critical mode, secondary switches where a followed branch
 loses stability. This script additionally continues the flat branch past its first instability
@@ -20,9 +20,7 @@ turns at a further branch point) and draws
         [--out docs/images/disk-bifurcation-diagram.png]
 
 It also writes the branches as CSV next to the picture (NAME.csv: branch, ε, |w|max, wrinkles,
-negative eigenvalues). h = 2, R2 = 3 at resolution 8 (1 093 vertices) takes 3 min here, the
-picture in docs/images/disk-bifurcation-diagram.png: one simple branch point, n = 0, at
-ε = 0.1415, a stable dome to ε = 0.5 and no secondary bifurcation on it.
+negative eigenvalues); h = 2, R2 = 3 at resolution 8 takes minutes.
 """
 
 from __future__ import annotations
@@ -35,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from femshell.io import check_writable_dir
-from femshell.validation.disk_wrinkles import EPS_END, _follow_branch, follow
+from femshell.validation.disk import EPS_END, _follow_branch, follow
 
 
 def branch_points(branch):

@@ -1,6 +1,6 @@
 r"""The seed paper's disk test: first bifurcation of the flat state, linear theory against the nonlinear shell.
 
-design.md 1.6: a free flat disk of radius R1, thickness h, whose inner circle r < R2 grows
+Theory §1.6: a free flat disk of radius R1, thickness h, whose inner circle r < R2 grows
 isotropically (the paper's ε = Λmax/Λmin − 1 = 0.5) and is thinner there, h/(1 + 0.5)².
 For each R2 in 1 … 4.5 and h in {2, 0.25} this script computes, ON THE SAME MESH:
 
@@ -48,7 +48,7 @@ from femshell.mesh.surface import SurfaceMesh
 from femshell.shell import Material, RestState, ShellModel
 from femshell.shell.rest_state import metric
 from femshell.solvers.continuation import GrowthParameter, continuation
-from femshell.validation.disk_wrinkles import outer_radius
+from femshell.validation.disk import outer_radius
 
 G0 = 0.5           # the paper's ε
 NU = 0.5

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from femshell.io import atomic_write_json
 from femshell.validation import wrinkle_scaling as ws
-from femshell.validation.disk_wrinkles import warm_up
+from femshell.validation.disk import warm_up
 
 
 def table(samples):

@@ -29,7 +29,7 @@ import numpy as np
 
 from femshell.io import atomic_write_json
 from femshell.validation import wrinkle_scaling as ws
-from femshell.validation.disk_wrinkles import warm_up
+from femshell.validation.disk import warm_up
 
 
 def read_samples(path):

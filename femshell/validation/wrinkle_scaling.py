@@ -1,68 +1,27 @@
 r"""Wrinkle wavelength of the seed paper's disk against thickness h and growth strain ε.
 
-design.md 1.5 quotes the Cerda–Mahadevan scaling λ ∝ h^{1/2} ε^{-1/4} for the paper's patterns, and
-issue #4 asks for it from the disk test of design.md 1.6 (:mod:`.disk_wrinkles`): the same free disk
-(R1 = max(20, 5 R2), ν = 0.5) whose inner circle r < R2 grows by the linear stretch 1 + ε with
-volume-conserving thickness h/(1 + ε)².
+Reference: the Cerda-Mahadevan scaling λ ∝ h^{1/2} ε^{-1/4} (Cerda & Mahadevan, PRL 90, 074302, 2003; theory
+§1.5), asked of the disk test of theory §1.6 by issue 4: the free disk of :mod:`.disk` (R1 = max(20, 5 R2),
+ν = 0.5) whose inner circle r < R2 grows by the stretch 1 + ε with thickness h/(1 + ε)². The exponents are
+reported against 1/2 and −1/4 without a tolerance (the paper's are for far-from-threshold wrinkles of a spring
+network); the pass criterion is that every measured state is a resolved stable equilibrium.
 
-Procedure (per state h, ε)
---------------------------
-Mesh and law: :class:`~femshell.validation.disk_wrinkles.Disk` with the grown region refined throughout
-(``refine_inside``: edge R2/``resolution`` over r < R2; the full level's 24 is edge 0.125, on which the thin
-disk-wrinkles cases carry their lobed rims) and, at the full level, the neo-Hookean membrane (elliptic in
-compression; the quick level keeps design.md's St Venant–Kirchhoff, as disk-wrinkles' does).
+State (h, ε): the one the disk reaches when grown slowly from flat (:func:`~.disk.branches.follow`: continuation,
+branch switching, relaxation where the shell snaps); each h is grown once, to its largest ε (:func:`history_plan`),
+and the smaller ε of the ε sweep are snapshots of that history. A state counts when it is an equilibrium (|∇Π| ≤
+``EQUILIBRIUM_RTOL`` of the flat disk's), stable (no negative eigenvalue) and resolved (no mid-edge normal turned
+by 80° or more). Each finished history is checkpointed (:func:`growth_history`). Mesh: the grown region refined
+throughout (edge R2/``resolution``); law: neo-Hookean on the full level, St Venant-Kirchhoff on the quick one.
 
-State: the one the disk reaches when it is grown slowly from flat to ε,
-:func:`~femshell.validation.disk_wrinkles.follow`: the flat branch by pseudo-arclength continuation with the
-inertia at every point, its loss of stability bisected, a switch onto the branch born there (again at every
-secondary loss), and, where no branch goes on (a fold, a failed switch), stable Newton (saddle escape) from the
-critical point pushed along its mode, in steps of at most 0.05. No seed is needed: the switch along the
-critical mode picks the branch. Each h is grown once, to the largest ε wanted of it (:func:`history_plan`); the
-states at the smaller ε of the ε sweep are snapshots of that same history, taken where its relaxation passes
-them (a snapshot on a followed branch is grown to on its own: the continuation stops there exactly, on the same
-branch). So the ε sweep is one disk observed as it grows, as an experiment would measure it. A state must be a
-local minimum resolved by the mesh (the toleranced rows): an equilibrium (|∇Π| at most ``EQUILIBRIUM_RTOL`` of
-the flat disk's at the same ε; a relaxation whose Newton fails keeps its last iterate), whose constrained
-Hessian (LDLᵀ) has no negative eigenvalue and no mid-edge normal turned by 80° or more (a fold sharper than one
-element carries). Each finished history is checkpointed (:func:`growth_history`), so an interrupted full run
-resumes history by history.
+Measure: the deflection w (best-fit plane removed) on the circles r = ``RIM_RADII`` · R2 around the rim; the
+state is wrinkled when its largest azimuthal amplitude with k ≥ 2 is at least ``REL_TOL`` of the axisymmetric
+one; n is that k and λ = 2π R2 / n. The far field, where the free sheet bends as a whole, is left out.
 
-Until 2026-11-28 each state was the lower-energy end of two seeded ramps (:func:`seeded_state`: a small dome,
-and the dome plus azimuthal waves k = 2 … 16 on the rim band; ε raised in fixed steps of ``EPS_STEP`` with
-stable Newton), on a mesh refined only in a band along r = R2. On the refined mesh those ramps fail from their
-first step at h ≥ 0.35: the seed is far from any equilibrium, and Newton creeps from it with shifted steps
-(measured at h = 0.5, ε 0 → 0.05: 128 iterations, 126 s, ending at a saddle with a 90° fold at the centre;
-to ε = 0.01 it converges, to the flat disk, which erases the seed). :func:`seeded_state` stays for the seed
-studies (validation/wrinkle_seeds_study.py, validation/wrinkle_modes_study.py).
+Fit: log λ = a + p log h (and against log ε) over the wrinkled states, weighted least squares with the rounding
+of n as each point's error, σ(log λ) = 1/(n √12); σ_p scaled by √(χ²/dof) when that exceeds 1.
 
-Measure: the out-of-plane deflection w (best-fit plane removed) is sampled on the circles
-r = ``RIM_RADII`` · R2 around the rim of the grown region, where a wrinkle would be; the azimuthal
-Fourier powers are summed over them. The state is *wrinkled* when the largest amplitude with
-k ≥ 2 is at least ``REL_TOL`` of the axisymmetric amplitude (5 %, the threshold of the wrinkle
-count of :mod:`.disk_wrinkles`, which measures it against the total amplitude on one circle). Its wavenumber n is that dominant k and its wavelength the
-paper's λ = 2π R2 / n (the paper: λ ≈ 6.12 for 2 wrinkles at R2 = 1.95). The far field is left
-out on purpose: there the free sheet bends as a whole (measured at h = 0.25: a saddle, k = 2, whose
-amplitude grows linearly with r, like a cone; not a wave of the rim).
-
-Fit: log λ = a + p log h over the wrinkled states of the h sweep (and log λ against log ε for the ε
-sweep), weighted least squares with the rounding of n as each point's error
-(σ(log λ) = 1/(n √12)); p ± σ_p, σ_p scaled by √(χ²/dof) when that exceeds 1. Reported against 1/2
-and −1/4 with no tolerance (the paper's exponents are for a spring network's far-from-threshold
-wrinkles; ours is a measurement); with fewer than two wrinkled states of distinct h (or ε) there is
-no exponent row, and the row counting the wrinkled states says so.
-
-Measured (full level, 2026-11-28: R2 = 3, resolution 24 = edge 0.125 inside, 5 244 vertices, neo-Hookean; 3-24
-min per history on one core, two at once; table and reading in docs/disk-crosscheck.md): every state is a
-resolved stable equilibrium (27 of 27 toleranced rows). At ε = 0.5 the rim carries n = 5, 5, 4 lobes at h = 0.25,
-0.35, 0.5 (26-28 % of the dome) and h = 0.7 and 1 stay domes (0.7 %, 0.6 %): λ ∝ h^p with p = 0.30 ± 0.19 (1/2
-expected). The
-h = 0.25 history passes n = 2 at ε = 0.3 (the whole inclusion bent into a saddle: k = 2 dominates at every radius
-from 0.5 R2 out, 14-24 % of the dome inside the rim, k = 5 at 4-9 %) and n = 5 at 0.4 and 0.5 (the lobed rim):
-p = −1.1 ± 1.1 against ε (−1/4 expected), a fit across that change of pattern. The mesh check on resolution 28
-(6 132 vertices) moves n by one either way (6 at h = 0.25, 3 at h = 0.5; p = 1.0 ± 0.16): n is decided to within
-one by the mesh and the path, so the exponents are not yet measured to better than their size (probes on
-resolution 32, docs/disk-crosscheck.md: n = 6 and 4, p = 0.58 ± 0.13). The flat disk loses
-stability at ε_c = 0.0028, 0.0055, 0.011, 0.021, 0.042 for h = 0.25 … 1, ∝ h^1.94 (plate theory: h²).
+:func:`seeded_state` (ramps from a seeded dome with azimuthal waves) serves the seed studies
+(validation/wrinkle_seeds_study.py, validation/wrinkle_modes_study.py).
 """
 
 from __future__ import annotations
@@ -78,7 +37,7 @@ from ..shell.element import EDGE_UNKNOWN
 from ..shell.model import FOLD_LIMIT_DEG
 from ..solvers.linear import LinearSolverError
 from .common import saved_state
-from .disk_wrinkles import EQUILIBRIUM_RTOL, Disk, follow, stable_state, warm_up
+from .disk import EQUILIBRIUM_RTOL, Disk, follow, stable_state, warm_up
 from .framework import Row, timed
 
 NAME = "wrinkle-scaling"
@@ -86,7 +45,7 @@ DESCRIPTION = ("the paper's disk (inner circle r < R2 grown by eps, volume-conse
                "wavelength 2 pi R2/n of the stable states reached by growing from flat (continuation, branch "
                "switching) against h and eps, fitted exponents vs 1/2 and -1/4")
 SOURCE = ("Cerda & Mahadevan, Geometry and physics of wrinkling, PRL 90, 074302 (2003): lambda ~ h^(1/2) "
-          "eps^(-1/4); Zakharov & Dasbiswas section 4 (design.md 1.5, 1.6). Exponents reported, no tolerance; "
+          "eps^(-1/4); Zakharov & Dasbiswas section 4 (theory §1.5, §1.6). Exponents reported, no tolerance; "
           "pass criterion: every measured state is a stable equilibrium")
 
 R2 = 3.0
@@ -136,7 +95,7 @@ def seeded_state(disk, eps, eps_step=EPS_STEP, seed=SEED, waves=SEED_WAVES, chec
 
     With ``checkpoint`` (an .npz path) the state is saved after every ε step and a run resumes from
     the last saved step (a finished state is read back, not recomputed); a checkpoint of another
-    disk, seed, seed modes or ε path, or one written with edge angles (before 2026-11-28), is refused
+    disk, seed, seed modes or ε path, or one written with edge angles, is refused
     (ValueError naming the difference).
     """
     modes = [int(k) for k in modes]
