@@ -1,6 +1,6 @@
 """How the coupled loop's step control sets its time error, and what a tighter one costs.
 
-The staggered loop (design.md 1.4) adapts dt so that the stretch s changes by at most
+The staggered loop (theory §1.4) adapts dt so that the stretch s changes by at most
 ``ds_max`` per step (and keeps the staggering stable, ``feedback_amplification``). The sphere
 scenarios use ds_max = 0.05. This study runs one scenario from the same seed to the same time T
 with a series of ds_max (the committed studies: 0.2 … 0.00625 for `propagation`, 0.1 … 0.0125 for

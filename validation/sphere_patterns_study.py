@@ -1,8 +1,7 @@
 r"""The paper's sphere scenarios on coarser spheres, within a wall-time budget, tabulated beside the paper.
 
 The ``sphere-patterns`` validation case (femshell/validation/sphere_patterns.py) defines the nine
-scenarios of design.md 1.5 and runs them at the paper's resolution at its full level (``spots``:
-37.7 min here). This script runs any of them on a sphere of chosen radius and vertex count for at
+scenarios of theory §1.5 and runs them at the paper's resolution at its full level. This script runs any of them on a sphere of chosen radius and vertex count for at
 most ``--wall-time`` seconds each (to t_final or a stationary pattern if that comes first),
 resumable from per-scenario checkpoints, and writes per scenario
 
@@ -62,8 +61,8 @@ def record(r: dict, radius: float, wall_budget: float, params) -> dict:
     pc, ph = (polar_profile(r["points"], v, 36, triangles=r["triangles"]) for v in (r["c"], r["H"]))
     return {"scenario": r["scenario"], "paper": SCENARIOS[r["scenario"]].paper, "radius": radius,
             "n_vertices": r["n_vertices"], "status": r["status"], "message": r["message"], "t": r["t"],
-            # the whole run's time over all its calls (checkpoints from before 2026-11-27 did not record it: their
-            # total starts at the call that resumed them); the last call's time and budget beside it
+            # the whole run's time over all its calls (a checkpoint without that total counts from the call
+            # that resumed it); the last call's time and budget beside it
             "wall_s": r.get("wall_s_total", r["wall_s"]), "wall_s_last_call": r["wall_s"],
             "wall_budget_s": wall_budget, "steps": r["steps"],
             "n_spots": m.n_spots, "n_ridges": m.n_ridges, "kind": m.kind,
@@ -108,13 +107,13 @@ def profile_plot(rec: dict, path: Path, title: str):
 
 
 def own_thickness_mode(name: str) -> str:
-    """The thickness law a scenario has in design.md 1.5 ("volume" unless it says otherwise)."""
+    """The thickness law a scenario has in theory §1.5 ("volume" unless it says otherwise)."""
     return model_of(SCENARIOS[name]).thickness_mode
 
 
 def law_tag(rec: dict) -> str:
     """The table's tag of a run with another law than the scenario's own: neo-Hookean instead of
-    design.md's St Venant–Kirchhoff, or the other thickness law; runs with the scenario's own are untagged."""
+    the default St Venant–Kirchhoff, or the other thickness law; runs with the scenario's own are untagged."""
     tags = ["neo-Hookean"] if rec.get("membrane_law", "svk") == "neo-hookean" else []
     own = own_thickness_mode(rec["scenario"])
     mode = rec.get("thickness_mode", own)
@@ -156,9 +155,9 @@ def main(argv=None):
     ap.add_argument("--t-final", type=float, default=100.0)
     ap.add_argument("--wall-time", type=float, default=900.0, help="seconds per scenario (this call)")
     ap.add_argument("--membrane-law", choices=("svk", "neo-hookean"), default="svk",
-                    help="membrane law (design.md: svk; neo-hookean stays elliptic under compression)")
+                    help="membrane law (default svk; neo-hookean stays elliptic under compression)")
     ap.add_argument("--thickness-mode", choices=("volume", "uniform"), default=None,
-                    help="thickness law instead of the scenario's own (design.md 1.1)")
+                    help="thickness law instead of the scenario's own (theory §1.1)")
     ap.add_argument("--checkpoints", type=Path, default=Path("validation-out/sphere-patterns-study"))
     ap.add_argument("--doc", type=Path, default=None, help="markdown file whose generated table to rewrite")
     ap.add_argument("--results", type=Path, default=RESULTS,

@@ -9,8 +9,9 @@ Each case is a module in this package that defines
   error against vertex count and against wall time for every quantity that has a
   reference).
 
-:func:`run_case` writes ``DIR/NAME.json`` (schema in design.md section 4) and
-``DIR/NAME.png``, and returns whether every row with a tolerance passed.
+:func:`run_case` writes ``DIR/NAME.json`` (keys case, level, source, description, total_wall_s
+and rows, one dict per :class:`Row`) and ``DIR/NAME.png``, and returns whether every row with a
+tolerance passed.
 
 Example
 -------

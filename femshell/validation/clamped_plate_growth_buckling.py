@@ -13,7 +13,7 @@ N, Timoshenko & Gere): buckling in mode cos(nθ) when N a²/D = k² with J_{n+1}
 membrane strain ε, the critical strain is ε_c = k² t² / (12 (1 + ν) a²).
 
 Which strain? The model's membrane strain is measured against the target metric. For
-this energy (design.md 1.2) the flat, clamped, grown disk has the Cauchy membrane force
+this energy (theory §1.2) the flat, clamped, grown disk has the Cauchy membrane force
 N = E t (1 − s⁻²)/(2 (1 − ν)) and the bending stiffness D/s² per current area (s = 1 + g),
 so its exact continuum buckling condition is ε := ((1 + g)² − 1)/2 = k² t²/(12 (1 + ν) a²):
 the Green strain of the growth, not g itself. The two differ by g/2 ≈ 5e-5 relative here
@@ -37,8 +37,11 @@ import numpy as np
 from scipy.special import jn_zeros
 
 from ..mesh.generators import disk
+from ..mesh.io import write_mesh
 from ..shell import Clamped, Material, ShellModel, uniform_growth
 from ..solvers.continuation import GrowthParameter, continuation, switch_branch
+from ..solvers.linear import factorize
+from ..viz import bifurcation_diagram
 from .common import order_row
 from .framework import Row, timed
 
@@ -97,8 +100,6 @@ def azimuthal_wavenumber(points, modes_z, n_max=12, r_min=0.15):
 def shell_mesh_writer(model, fmt="vtu"):
     """A ``mesh_writer`` for :func:`femshell.io.write_special_points`: the reference mesh with point data
     ``displacement`` (the state) and ``mode_j`` (the displacement part of each critical mode)."""
-    from ..mesh.io import write_mesh
-
     def writer(stem, u, modes):
         path = f"{stem}.{fmt}"
         data = {"displacement": model.positions(u) - model.mesh.points}
@@ -133,7 +134,6 @@ def draw_diagram(ax, rows, xlabel, ylabel, title):
     """Render the bifurcation diagram with femshell.viz into a temporary PNG and show it on ``ax``."""
     import matplotlib.image as mpimg
 
-    from ..viz import bifurcation_diagram
 
     ax.axis("off")
     if not rows:
@@ -178,8 +178,6 @@ def warm_up(level):
     chunk shape (<= 256 and 4096 elements), and the first factorisation loads MKL: seconds
     that would otherwise be booked to the coarsest mesh of the error-against-time plot.
     """
-    from ..solvers.linear import factorize
-
     for h in ([0.5] if level == "quick" else [0.5, 0.17]):        # 50 and 271 triangles
         _, model = _model(h)
         u = model.initial_unknowns()

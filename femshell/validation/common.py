@@ -8,6 +8,7 @@ import numpy as np
 
 from ..io import load_checkpoint
 from ..solvers.linear import factorize
+from .framework import Row
 
 
 def linear_response(model):
@@ -46,8 +47,6 @@ def finest_order(n_vertices, errors, meshes=ORDER_FIT_MESHES):
 def order_row(quantity, rows):
     """A row reporting the convergence order fitted to the finest (up to ORDER_FIT_MESHES) rows whose
     quantity is ``quantity @ ...``."""
-    from .framework import Row
-
     sel = [r for r in rows if r.quantity.split(" @")[0] == quantity and r.rel_error is not None]
     p, k = finest_order([r.n_vertices for r in sel], [r.rel_error for r in sel])
     return [] if p is None else [Row(f"observed order of {quantity} (finest {k} meshes)", p)]

@@ -1,7 +1,7 @@
 r"""Mean curvature from the shell's own second fundamental form, on unstructured gmsh meshes.
 
 H = ½ tr(a⁻¹ b) per element, with a, b from :meth:`ShellModel.fundamental_forms`
-(design.md 1.3: the chemistry's curvature comes from the shell itself). Three ways to
+(theory §1.3: the chemistry's curvature comes from the shell itself). Three ways to
 choose the edge angles θ (the rotation of each mid-edge normal about its edge, the
 unknowns that complete the Morley-type element):
 
@@ -45,6 +45,7 @@ from ..geometry import element_to_vertex, mean_curvature, triangle_areas
 from ..mesh.generators import cylinder, plate, sphere
 from ..shell import Material, RestState, ShellModel, metric
 from ..solvers.newton import minimize
+from .common import finest_order
 from .framework import Row, timed
 
 NAME = "curvature"
@@ -163,7 +164,7 @@ def _sphere_rows(h, last):
     rows += _error_rows(f"spheroid z*{1 + EPS:g}: H - H_rest (loop definition), vertices", h, Hv, ref_v, va,
                         scale, n, t(), TOL_LOOP if last else None)
 
-    # design.md's literal rest curvature b̄ = k0 ā0 (rest_curvature="k0"): H relative to k0
+    # the literal rest curvature of theory §1.1, b̄ = k0 ā0 (rest_curvature="k0"): H relative to k0
     with timed() as t:
         u = _relax(model, moved)
         a, b = model.fundamental_forms(u)
@@ -230,8 +231,6 @@ def run(level):
 
 def _order_rows(quantity, rows):
     """Observed order of ``quantity`` (rows whose value is the error, reference 0)."""
-    from .common import finest_order
-
     sel = [r for r in rows if r.quantity.split(" @")[0] == quantity]
     p, k = finest_order([r.n_vertices for r in sel], [r.value for r in sel])
     return [] if p is None else [Row(f"observed order of {quantity} (finest {k} meshes)", p)]

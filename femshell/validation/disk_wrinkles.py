@@ -12,17 +12,19 @@ Physics: while flat the grown inclusion is a Lamé problem (equibiaxial compress
 it buckles at ε_c ~ (h/R2)² into a dome, and a dome cannot take up the excess length of circles near its rim
 (2πR sin(ρ/R) < 2πρ), so a thin rim wrinkles into n waves, n growing with R2/h.
 
-Procedure per case (:mod:`.disk`): the disk and its states (:mod:`.disk.model`), the flat branch, branch switching
-and relaxation to a stable state at ε = 0.5 (:mod:`.disk.branches`), the exchange of end states with the
-neighbouring R2 (:mod:`.disk.exchange`), the count (:mod:`.disk.measures`: dominant Fourier mode k ≥ 2 of the
-deflection on r = 1.15 R2), the levels, checkpoints and workers (:mod:`.disk.cases`). R1 = max(20, f R2), f = 5 on
-the quick level (issue 4: R1 ≥ 5 R2) and 10 on the full one (ε_c converges only as 1/R1).
+Procedure per case (:mod:`femshell.validation.disk`): the disk and its states
+(:mod:`~femshell.validation.disk.model`), the flat branch, branch switching and relaxation to a stable state at ε =
+0.5 (:mod:`~femshell.validation.disk.branches`), the exchange of end states with the neighbouring R2
+(:mod:`~femshell.validation.disk.exchange`), the count (:mod:`~femshell.validation.disk.measures`: dominant Fourier
+mode k ≥ 2 of the deflection on r = 1.15 R2), the levels, checkpoints and workers
+(:mod:`~femshell.validation.disk.cases`). R1 = max(20, f R2), f = 5 on the quick level (issue 4: R1 ≥ 5 R2) and 10
+on the full one (ε_c converges only as 1/R1).
 
-Material law: the St Venant-Kirchhoff membrane (theory §1.2) loses ellipticity below the stretch
-√((α + β)/(α + 2β)) = √(3/4) for ν = 0.5 (:func:`.disk.model.svk_ellipticity_stretch`), which a thick small
-inclusion (h = 2, R2 ≤ 1.5) reaches before it buckles: no stable state there. The quick level (R2 = 3, 4) keeps
-SVK; the full level runs its whole grid with the neo-Hookean membrane (the same law to second order, elliptic
-at every stretch). The row "smallest stretch current/target" at the first bifurcation shows which case is which.
+Material law: the St Venant-Kirchhoff membrane (theory §1.2) loses ellipticity below the stretch √((α + β)/(α + 2β))
+= √(3/4) for ν = 0.5 (:func:`~femshell.validation.disk.model.svk_ellipticity_stretch`), which a thick small
+inclusion (h = 2, R2 ≤ 1.5) reaches before it buckles: no stable state there. The quick level (R2 = 3, 4) keeps SVK;
+the full level runs its whole grid with the neo-Hookean membrane (the same law to second order, elliptic at every
+stretch). The row "smallest stretch current/target" at the first bifurcation shows which case is which.
 
 The full level checkpoints every case and carried state in ``OUT/disk-wrinkles-checkpoints``; the recorded run's
 states are kept in ``validation/results/disk-wrinkles-states`` (copied there they give its rows in minutes).
@@ -62,8 +64,8 @@ _LAST = {}   # per-case results of the last run(), for plot()
 
 
 def solve_level(level, out_dir=None, log=None):
-    """Every case of ``level`` solved (:func:`~.disk.cases.solve_cases`), exchanged with its neighbouring radii
-    (:func:`~.disk.exchange.exchange_states`) and given to its scaled twins (:func:`~.disk.cases.with_twins`):
+    """Every case of ``level`` solved (:func:`~.cases.solve_cases`), exchanged with its neighbouring radii
+    (:func:`~.exchange.exchange_states`) and given to its scaled twins (:func:`~.cases.with_twins`):
     {(h, R2, resolution): (disk, u, record)}. The full level checkpoints in ``out_dir/disk-wrinkles-checkpoints``."""
     cfg = LEVELS[level]
     checkpoints = None

@@ -15,7 +15,7 @@ cylindrical bending is a beam of stiffness E t³/12 per width exactly when ν = 
 anticlastic curvature, no Poisson stress across the width), and the uniform compressed
 state is then exact.
 
-Strain and force: for this energy (design.md 1.2) the flat strip's Cauchy membrane force is
+Strain and force: for this energy (theory §1.2) the flat strip's Cauchy membrane force is
 N = E t (1 − s⁻²)/(2 s) and its bending stiffness D/s³ per current area (s = 1 + g), so the
 exact continuum buckling condition is ε := ((1 + g)² − 1)/2 = N_cr / (E t): the compressive
 force is N = E t ε (reported, toleranced), or N = E t g to first order in g (also reported;

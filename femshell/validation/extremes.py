@@ -2,7 +2,7 @@ r"""Stiff and extreme inputs: large growth, steep sigmoids, huge production, dif
 
 Each row has a pass criterion (a tolerance) unless it only reports a measurement.
 
-1. **Large incompatible growth.** The disk test of the seed paper (design.md 1.6: flat disk of
+1. **Large incompatible growth.** The disk test of the seed paper (theory §1.6: flat disk of
    radius 10, free edge, ν = 0.5) with the growth pushed from s = 1.5 to s = 2 (area ×4,
    thickness /4 in the inner disk of radius 3). The stretch is stepped from 1 to 2
    (:func:`grow_in_steps`: a failed Newton solve halves the step and retries from the last
@@ -14,9 +14,7 @@ Each row has a pass criterion (a tolerance) unless it only reports a measurement
    0.5 rad, h = 0.02) grows by s (ā = s² a0, b̄ = s² b0, h̄ = h/s²: it keeps wanting the
    curvature 1/R while its area grows — metric and curvature are incompatible, as in the
    coupled loop). Reported: the stretch reached with Newton converging to rtol 1e-8, and
-   whether a Newton failure stopped it (earlier versions stopped near s ≈ 1.5, where Newton
-   converged only linearly along a soft, near-isometric mode of the free cap; the full-level
-   runs since 2026-11-23 reach s = 2). Pass: every accepted state is a stable minimum.
+   whether a Newton failure stopped it. Pass: every accepted state is a stable minimum.
 3. **Steep sigmoid** Λ(c), s(c), ds/dc for b = 1 … 1000 and c − c* = ±2e3 under
    ``np.errstate(over/invalid/divide="raise")``. Pass: 0 non-finite values, 0 violations of
    monotonicity and bounds.
@@ -32,6 +30,13 @@ import time
 
 import numpy as np
 
+from ..chemistry import ReactionDiffusion, curvature_source
+from ..growth import contractility, dstretch_dc, stretch
+from ..mesh import SurfaceMesh
+from ..mesh.generators import disk, sphere
+from ..shell import Material, RestState, ShellModel, flat_rest_state, metric
+from ..solvers.linear import factorize
+from ..solvers.newton import NewtonError, minimize, secant_start
 from .framework import Row
 
 NAME = "extremes"
@@ -42,8 +47,7 @@ SOURCE = ("pass criteria from the mathematics: stability from the Hessian inerti
 
 LEVELS = {
     "quick": {"disk_edge": 2.0, "disk_steps": 10, "cap": False},
-    # full: h = 0.7 (833 vertices): 7-10 min here (load 2-4), 5 cuts; before grow_in_steps let the step grow
-    # back after cuts it ran 34 min (load 3-10) and was stopped at s = 1.85 with its step cut to 1e-4
+    # full: edge 0.7 (833 vertices), minutes on one core
     "full": {"disk_edge": 0.7, "disk_steps": 10, "cap": True},
 }
 
@@ -62,8 +66,6 @@ def grow_in_steps(model, rest_at, s_target, n_steps=10, max_cuts=6, callback=Non
     cuts leaves the model at the last converged stretch and carries it in ``stats`` of the
     error's ``.stats`` attribute.
     """
-    from ..solvers.newton import NewtonError, minimize, secant_start
-
     s, u = 1.0, (model.initial_unknowns() if u0 is None else np.array(u0, float))
     if "residual_scale" not in newton:
         # one force scale for all steps: the imbalance of the start under the full growth. (minimize's
@@ -120,9 +122,6 @@ def _rim_waves(x, rim):
 
 
 def _disk_rows(cfg):
-    from ..mesh.generators import disk
-    from ..shell import Material, RestState, ShellModel, metric
-
     R1, R2, h, s_max = 10.0, 3.0, 0.5, 2.0
     mesh = disk(radius=R1, edge_length=cfg["disk_edge"], inner_radius=R2)
     a0 = metric(mesh.points, mesh.triangles)
@@ -163,11 +162,6 @@ def _disk_rows(cfg):
 # --------------------------------------------------------------------------- 2. cap
 
 def _cap_rows():
-    from ..mesh import SurfaceMesh
-    from ..mesh.generators import disk
-    from ..shell import Material, RestState, ShellModel, flat_rest_state
-    from ..solvers.newton import NewtonError
-
     flat = disk(radius=1.0, edge_length=0.2)
     R, h = 2.0, 0.02
     r = np.linalg.norm(flat.points[:, :2], axis=1)
@@ -200,8 +194,6 @@ def _cap_rows():
 # --------------------------------------------------------------------------- 3. sigmoid
 
 def _sigmoid_rows():
-    from ..growth import contractility, dstretch_dc, stretch
-
     t0 = time.perf_counter()
     bad = nonmono = out = 0
     n_eval = 0
@@ -226,10 +218,6 @@ def _sigmoid_rows():
 # --------------------------------------------------------------------------- 4. chemistry
 
 def _chemistry_rows():
-    from ..chemistry import ReactionDiffusion, curvature_source
-    from ..mesh.generators import sphere
-    from ..solvers.linear import factorize
-
     m = sphere(radius=30.0, n_vertices=600, seed=0)
     pts, tri = m.points, m.triangles
     rng = np.random.default_rng(0)

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..chemistry import P1Assembler, ReactionDiffusion
+from ..mesh.generators import sphere
 from ..solvers.linear import factorize, smallest_eigenvalues
 from .framework import Row, timed
 
@@ -59,8 +60,6 @@ def _harmonics(points):
 
 
 def _mesh(n_vertices):
-    from ..mesh.generators import sphere
-
     m = sphere(radius=1.0, n_vertices=n_vertices, seed=0)
     # vertices exactly on the sphere (gmsh puts them there to rounding)
     pts = m.points / np.linalg.norm(m.points, axis=1)[:, None]

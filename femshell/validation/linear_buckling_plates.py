@@ -14,7 +14,7 @@ isotropic eigenstrain, then the Morley-plate eigenproblem K_b w = mu K_g(N) w.
   J0(k) = 0 (k^2 = 5.783): the rows show that the Morley element does not go there.
 * Simply supported rectangle a x b under N_x: N_cr = k pi^2 D / b^2 with
   k = min_m (m b/a + a/(m b))^2 = 4 for a/b = 1 (m = 1) and a/b = 2 (m = 2).
-* The disk test of design.md 1.6 (seed paper, section 4), rows without tolerance.
+* The disk test of theory §1.6 (seed paper, section 4), rows without tolerance.
 
 All reference numbers are computed here from scipy.special (Bessel zeros, brentq), not
 from any FEM run. Levels: quick = one mesh of about 2500 vertices per geometry; full =
@@ -31,6 +31,9 @@ import time
 
 import numpy as np
 
+from ..linear_buckling import (buckling_loads, critical_growth_strain, critical_inner_radius, membrane_prestress,
+                               mode_wavenumber)
+from ..mesh import generators
 from .framework import Row
 
 NAME = "linear-buckling-plates"
@@ -49,7 +52,7 @@ THICK = 0.01            # plate thickness for the disk rows (radius 1): thin, g_
 G = 1e-3                # nominal growth strain of the prestress (only mu * G matters)
 QUICK_VERTICES = 2500
 FULL_VERTICES = (800, 1600, 3200, 6400, 12800, 25600, 51200)
-#: k^2 (k for the rectangles) at ~2500 vertices, about 3x the measured errors (2026-11-26: 2.4e-4, 1.3e-3,
+#: k^2 (k for the rectangles) at ~2500 vertices, about 3x the errors (2.4e-4, 1.3e-3,
 #: 2.5e-3, 1.7e-3, 3.8e-3 clamped n = 0, 1, 2, (0, m=2), 3; 1.4e-4 simply supported; 8.3e-4, 1.7e-3 the
 #: rectangles a/b = 1, 2), so that an error of ~1 % in D or in the prestress fails
 TOL_QUICK = {"k2 clamped n=0": 1e-3, "k2 clamped n=1": 5e-3, "k2 clamped n=2": 1e-2, "k2 clamped n=0 m=2": 5e-3,
@@ -100,16 +103,12 @@ def rectangle_reference(aspect):
 # ----------------------------------------------------------------------------- one solve each
 
 def _disk_mesh(n_vertices):
-    from ..mesh import generators
-
     m = generators.disk(1.0, n_vertices=n_vertices)
     return np.asarray(m.points)[:, :2].copy(), np.asarray(m.triangles)
 
 
 def _disk_k2(n_vertices, bc, k, solver="splu"):
     """k^2 = g_c 12 (1+nu) a^2 / t^2 of the uniformly grown disk (a = 1); modes' n; timings."""
-    from ..linear_buckling import buckling_loads, membrane_prestress, mode_wavenumber
-
     t0 = time.perf_counter()
     p, tri = _disk_mesh(n_vertices)
     N = membrane_prestress(p, tri, G, nu=NU, thickness=THICK, boundary="clamped")
@@ -121,9 +120,6 @@ def _disk_k2(n_vertices, bc, k, solver="splu"):
 
 def _rectangle_k(aspect, n_vertices):
     """k = N_cr b^2 / (pi^2 D) of the SS rectangle (b = 1, D = 1, N = (-1, 0, 0)); half-waves m."""
-    from ..linear_buckling import buckling_loads
-    from ..mesh import generators
-
     t0 = time.perf_counter()
     m = generators.plate(float(aspect), 1.0, n_vertices=n_vertices)
     p, tri = np.asarray(m.points)[:, :2], np.asarray(m.triangles)
@@ -160,8 +156,6 @@ def _order(rows):
 # ----------------------------------------------------------------------------- row groups
 
 def _prestress_rows(n_vertices):
-    from ..linear_buckling import membrane_prestress
-
     rows = []
     E, t, g = 1.0, 0.1, 0.01
     p, tri = _disk_mesh(n_vertices)
@@ -179,7 +173,6 @@ def _prestress_rows(n_vertices):
     rows.append(Row("prestress free uniform growth: max |N| / (E t g)", np.abs(Nf).max() / (E * t * g),
                     0.0, 1e-6, len(p), time.perf_counter() - t0))
     # free disk R1 = 1 grown inside R2 = 0.5 (same t): Lamé inside N = -E t g (1 - R2^2/R1^2) / 2
-    from ..mesh import generators
 
     R2 = 0.5
     m = generators.disk(1.0, n_vertices=n_vertices, inner_radius=R2)
@@ -268,9 +261,7 @@ def _onsets_from_spectrum(cg, R2):
 
 
 def _disk_test_rows(resolution, full):
-    """The grown disk of design.md 1.6 in the linear theory; rows without tolerance."""
-    from ..linear_buckling import critical_growth_strain, critical_inner_radius
-
+    """The grown disk of theory §1.6 in the linear theory; rows without tolerance."""
     rows = []
     tag = f" (graded mesh, res {resolution})"
     cr = critical_inner_radius(DISK_R1, 2.0, g0=DISK_EPS, nu=DISK_NU, resolution=resolution, R2_start=1.2,
@@ -296,9 +287,6 @@ DISK_UNIFORM = (4, 6, 8, 12, 16)   # full level: uniform meshes with edge length
 
 def _disk_uniform_rows():
     """Onset radii of n = 2, 3, 4 from spectra on uniformly refined meshes (R2 = 3, h = 2)."""
-    from ..linear_buckling import critical_growth_strain
-    from ..mesh import generators
-
     R2 = 3.0
     rows, vals = [], {}
     for L, div in enumerate(DISK_UNIFORM):

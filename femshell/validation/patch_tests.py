@@ -71,7 +71,7 @@ def _cap_rows(h, radius=2.0, thickness=0.02):
         x = model.positions(res.u)
         fit_r = _sphere_fit_radius(x)
     n = mesh.n_vertices
-    # measured (2026-11-26, full level): energy ratio 3.3e-8 and radius error 2.2e-5 at h = 0.2, falling with h
+    # full level: energy ratio 3.3e-8 and radius error 2.2e-5 at h = 0.2, falling with h
     return [Row(f"cap targets: energy / flat-state energy @ h={h}", res.energy / e0, 0.0, 1e-6, n, t()),
             Row(f"cap targets: fitted sphere radius @ h={h}", fit_r, radius, 1e-4, n, t())]
 

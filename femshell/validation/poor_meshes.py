@@ -33,7 +33,7 @@ import numpy as np
 
 from ..mesh import SurfaceMesh
 from ..mesh.checks import quality_report, triangle_angles, warn_poor_quality
-from ..mesh.generators import disk
+from ..mesh.generators import _extract, _finish, _generate, _gmsh_model, _up, disk
 from ..shell import Clamped, DeadPressure, Material, ShellModel, flat_rest_state
 from .common import finest_order, linear_response
 from .framework import Row
@@ -103,8 +103,6 @@ def sliver_mesh(h, min_angle_deg, seed=0):
 
 def graded_disk(h_min, h_max, grading=GRADING, focus=(RADIUS, 0.0), seed=0):
     """Disk whose size grows from ``h_min`` at ``focus`` as h_min + grading × distance, up to ``h_max``."""
-    from ..mesh.generators import _extract, _finish, _generate, _gmsh_model, _up
-
     tol = 1e-7 * RADIUS
     with _gmsh_model(seed) as gmsh:
         gmsh.model.occ.addDisk(0, 0, 0, RADIUS, RADIUS)

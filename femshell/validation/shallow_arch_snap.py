@@ -77,6 +77,7 @@ from ..mesh.surface import SurfaceMesh
 from ..shell import DeadLoad, Material, ShellModel, SimplySupported, flat_rest_state
 from ..shell.loads import lumped_vertex_forces
 from ..solvers.continuation import LoadParameter, continuation
+from ..solvers.linear import factorize
 from .clamped_plate_growth_buckling import convergence_axes, richardson_row
 from .common import order_row
 from .framework import Row, timed
@@ -196,8 +197,6 @@ def fold_checks(branch):
 
 def warm_up():
     """Compile the element kernels (chunk of 256 elements) and load the solver before anything is timed."""
-    from ..solvers.linear import factorize
-
     _, model, _, _ = build(0.5)
     u = model.initial_unknowns()
     model.energy(u)

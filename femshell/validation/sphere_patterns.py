@@ -1,13 +1,13 @@
-r"""The seed paper's sphere scenarios: spots, ridges, decay, diffusion, thickness, size (design.md 1.5).
+r"""The seed paper's sphere scenarios: spots, ridges, decay, diffusion, thickness, size (theory §1.5).
 
-Each scenario starts from the rest sphere with c = 0 except the Gaussian spot of design.md 1.4
+Each scenario starts from the rest sphere with c = 0 except the Gaussian spot of theory §1.4
 (amplitude c_max = w Hs/β, width h) at the north pole and runs the staggered loop of
 :class:`~femshell.coupled.CoupledLoop` (stable equilibrium at every step) to ``t_final`` or to a
 stationary pattern. At the end the paper's measures (:func:`~femshell.analysis.find_spots`) are
 reported beside the paper's qualitative outcome:
 
 =================  =======================================  ==========================================
-scenario           parameters (others: design.md 1.5)       the paper (section 3)
+scenario           parameters (others: theory §1.5)         the paper (section 3)
 =================  =======================================  ==========================================
 spots              R = 30, h = 2, c* = 0.1, D = 0           near-uniform spots over the whole sphere
 ridges             c* = 0.2                                 ridge-like lines of bulges
@@ -32,23 +32,17 @@ t = 15 (it ends stationary, so the fixed-point row is exercised) and ``spots`` o
 t = 0.25; these meshes are coarser than the paper's (mean edge 1.5 and 2.0 against 0.72), so their outcomes
 say nothing about the paper's (see "Resolution" below). ``full`` runs all nine at the paper's
 resolution (25 000 vertices on R = 30, the same edge length on R = 15) to t = 100 or
-stationarity. ``spots`` at this resolution became stationary after 275 steps, 37.7 min on two cores
-(validation/sphere_patterns_study.py; other scenarios take other step counts). It writes a
-checkpoint per scenario every 10 steps into
+stationarity. It writes a checkpoint per scenario every 10 steps into
 ``OUT_DIR/sphere-patterns-checkpoints`` and resumes from it when run again (a finished scenario is
 not recomputed: its checkpoint records the end). validation/sphere_patterns_study.py runs the
 scenarios on coarser spheres within a wall-time budget and tabulates them.
 
 Resolution
 ----------
-The seeded spot (width d = h = 2) grows by s = 1.5 where c > c*, a disk of radius
-d √ln(c_max/c*) (1.7 for c* = 0.35), thinned to h/2.25. Resolved, it pops out into a cap whose
-mean curvature is set by its own size, H ≈ 0.45 ≈ 1/d on a mesh of edge 0.7 (R = 15, 6 684
-vertices), far above Hs = 0.05: P(H) saturates near c_max = 0.75, so the bulge sustains itself
-for every c* below about 0.65. On a mesh of edge 2.0 (R = 15, 800 vertices) the grown disk is one
-ring of elements, does not bulge, and the spot decays for c* = 0.35; at edge 1.5 (1 500
-vertices) it bulges (H = 0.15) and persists. The paper's decay for c* > 0.3 is therefore not a
-resolution-independent outcome of this continuum model with the design.md seed.
+The seeded spot is resolved only on meshes fine enough for its grown disk to pop out into a cap, whose mean
+curvature (≈ 1/d, d the seed's width) saturates the production P(H): then the bulge sustains itself for every c*
+below about 0.65. On coarser meshes it decays. The paper's decay for c* > 0.3 is therefore not a
+resolution-independent outcome of this continuum model with the theory §1.4 seed (docs/studies/sphere-patterns.md).
 """
 
 from __future__ import annotations
@@ -73,14 +67,14 @@ DESCRIPTION = ("the paper's sphere scenarios (spots, ridges, decay, D, thickness
                "coupled runs from one seeded spot, pattern measures beside the paper's outcomes "
                "(full level: paper resolution, 10-12 h per scenario here, resumable)")
 SOURCE = ("Zakharov & Dasbiswas, Mechanochemical induction of wrinkling morphogenesis on elastic shells, "
-          "section 3 (spring network, ~25 000 nodes), outcomes listed in design.md 1.5; reported beside ours "
+          "section 3 (spring network, ~25 000 nodes), outcomes listed in theory §1.5; reported beside ours "
           "without tolerance. Toleranced: c >= 0 and finite, no saddle accepted, no failed run, fixed point "
           "|P(H) - beta c| <= 1 % c_max at a stationary D = 0 end")
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """One run of the paper: model parameters that differ from design.md 1.5 and its outcome."""
+    """One run of the paper: model parameters that differ from theory §1.5 and its outcome."""
 
     name: str
     paper: str
@@ -125,7 +119,7 @@ def paper_vertices(radius: float) -> int:
 def model_of(scenario: Scenario, radius: float | None = None, membrane_law: str | None = None,
              thickness_mode: str | None = None) -> MechanochemicalModel:
     """The :class:`MechanochemicalModel` of a scenario (radius override for small test spheres;
-    ``membrane_law`` overrides design.md's St Venant–Kirchhoff, e.g. ``"neo-hookean"``;
+    ``membrane_law`` overrides the default St Venant–Kirchhoff, e.g. ``"neo-hookean"``;
     ``thickness_mode`` the scenario's thickness law, ``"volume"`` or ``"uniform"``)."""
     kw = {"h0": 2.0, **scenario.model, **({"membrane_law": membrane_law} if membrane_law else {}),
           **({"thickness_mode": thickness_mode} if thickness_mode else {})}
@@ -139,7 +133,7 @@ def run_scenario(scenario: Scenario, *, t_final: float, n_vertices: int, radius:
     """Run one scenario to ``t_final`` (or stationarity, ``wall_time`` seconds, ``max_steps`` steps); a dict.
 
     With ``checkpoint`` (an .npz path) the run resumes from it when it exists and saves
-    to it every 10 steps and at the end. ``seed``: the initial spot (default design.md 1.4's,
+    to it every 10 steps and at the end. ``seed``: the initial spot (default theory §1.4's,
     amplitude c_max and width h). ``membrane_law``, ``thickness_mode``: see :func:`model_of`.
     ``stepping``: :class:`TimeStepping` fields instead of the scenarios' (ds_max = 0.05, dt_max = 1).
     """

@@ -1,66 +1,26 @@
 r"""Spot radius of the seed paper's sphere against thickness h and growth strain ε.
 
-design.md 1.5 quotes the paper's scaling of spot size and spacing, h^{1/2} and ε^{-1/4}
-(ε = Λmax/Λmin − 1, Cerda & Mahadevan), and issue #5 asks for both against h (volume-conserving
-and uniform thickness) and against ε, with fitted exponents.
+Reference: the paper's scaling of spot size and spacing, h^{1/2} and ε^{-1/4} (ε = Λmax/Λmin − 1; Cerda &
+Mahadevan, PRL 90, 074302, 2003; theory §1.5), asked by issue 5 against h (volume-conserving and uniform
+thickness) and against ε, with fitted exponents. The exponents are reported against 1/2 and −1/4 without a
+tolerance; the toleranced rows are the invariants of every run (c ≥ 0 and finite, no saddle accepted, the run
+did not fail).
 
-What is measured, and why at D = 1.5
-------------------------------------
-Each state is a run of the coupled loop (:func:`.sphere_patterns.run_scenario`: stable
-equilibrium at every step, design.md 1.4) on a sphere of radius ``radius`` from one spot at the
-pole, to ``t_final`` or a stationary pattern (or ``wall_time`` seconds per call). With
-volume-conserving thickness the seeded spot does not spread into a pattern (docs/sphere-patterns.md):
-the runs end with one spot, the seeded bulge. Without diffusion its size is set by the mesh
-(R = 15, c* = 0.1: spot radius 4.21 at 2 697 vertices, 2.63 at 6 265), so an exponent fitted there
-would measure the mesh. With the paper's D = 1.5 (its large-spots scenario) the spot converges
-(radius 4.62 and 4.63 at 4 007 and 6 265 vertices, t = 40; 4.62 and 4.63 at t = 100 and at the
-stationary end; 5.35 at 2 697), so the sweeps are made at D = 1.5, c* = 0.1 and the other
-parameters of design.md 1.5 on 4 000 vertices. That mesh sequence is
-`validation/sphere_patterns_study.py`'s ``large-spots`` (the same model and seed as this case's
-h = 2, ε = 0.5 state); ``mesh_check`` adds vertex counts to rerun that state here.
+Each state is a run of the coupled loop (:func:`.sphere_patterns.run_scenario`, theory §1.4) on a sphere of radius
+``radius`` from one spot at the pole, to ``t_final``, a stationary pattern or ``wall_time`` seconds. The sweeps run
+at the paper's D = 1.5 (its large-spots scenario), c* = 0.1: without diffusion the spot's size is set by the mesh,
+with D = 1.5 it converges (docs/studies/sphere-patterns.md). Every state starts from the same seed, amplitude c_max and
+width ``SEED_WIDTH`` = 2 (the paper's h), so that the initial condition does not tie the spot to the swept h;
+``seed_check`` reruns h = 2 from seeds of other widths, ``mesh_check`` on other meshes.
 
-Why the St Venant–Kirchhoff sweeps stop where they do, and the neo-Hookean ε sweep
-------------------------------------------------------------------------------------
-At ε = 0.75 and 1, at h = 4 (R/h = 3.75) and for uniform thickness at h = 2.5 (t ≈ 63) the loop's
-step collapsed (dt ≈ 7e-6, 5e-8, 1e-4, 1e-8; Newton fails at every Δs). In each of those last
-states some elements are compressed past the St Venant–Kirchhoff membrane's ellipticity limit
-(16, 26, 10 and 4 of 8 010 elements, :meth:`~femshell.shell.ShellModel.membrane_ellipticity`;
-12, 18, 1 and 0 triangles turned inside out); in every state that reached its end at ε ≤ 0.5 there
-are none, except h = 3 (2 elements). The confined spot is compressed towards 1/(1 + ε) of its
-target, below the limit 0.866 (equibiaxial), and Newton's descent from there runs into mesh-scale
-folds. So the h sweep stops at h = 3 (R/h = 5), and the ε sweep of design.md's law at 0.5. The
-``eps_neo_hookean`` and ``h_neo_hookean`` sweeps repeat the ε and h sweeps with the neo-Hookean
-membrane (:mod:`femshell.shell.element`: the same law to second order in the strain, elliptic at
-every stretch), ε up to 0.75. The uniform-thickness sweep runs with it only: there the spot spreads into
-a pattern of compressed spots, and design.md's law stopped at h = 2.5. At ε = 1 it
-stopped as well (t = 0.34), for another reason: the spot, thinned to h = 0.5 on edges of 0.9, folds
-finer than the mesh (30 edges past 90°). Every state reports its snaps
-(:class:`~femshell.coupled.TimeStepping` ``snap_ds``), its non-elliptic elements and its largest
-angle between neighbouring faces (:func:`femshell.geometry.fold_angles`).
+St Venant-Kirchhoff sweeps stop where the confined spot is compressed below the membrane's ellipticity limit
+(stretch 0.866, equibiaxial) and the loop's step collapses (h = 3 for the h sweep, ε = 0.5); the ``eps_nh``,
+``h_nh`` and uniform-thickness sweeps use the neo-Hookean membrane (the same law to second order, elliptic at
+every stretch). Every state reports its snaps, its non-elliptic elements and its largest fold angle.
 
-The seed of design.md 1.4 has width d = h, which would tie the spot to the swept h through the
-initial condition. Here every state starts from the same seed, amplitude c_max and width
-``SEED_WIDTH`` = 2 (the paper's h), and the full level runs h = 2 again from seeds of other widths
-(``seed_check``) to show whether the end state remembers its seed.
-
-Measures are the paper's (:func:`~femshell.analysis.find_spots`): spot radius √(A_l/(π N_sp)) with
-A_l the area where c > c* (where Λ is low), spacing 2(√(A/(π N_sp)) − √(A_l/(π N_sp))). With a single
-spot the spacing is the sphere's size minus the spot's, not a distance between spots: its exponent
-is fitted only when every state of a sweep has two spots or more, and a row says so otherwise.
-
-Fit: log ρ = a + p log x by least squares over the states of a sweep that have spots; σ_p from the
-residuals (needs three states or more). Reported against 1/2 and −1/4 with no tolerance (the
-paper's exponents are a claim about its spring network, ours is a measurement). Toleranced rows:
-the invariants of every run (c ≥ 0 and finite, no saddle accepted, the run did not fail).
-
-Measured (full level, 2026-11-28; table and reading in docs/sphere-patterns.md): spot radius 4.90, 4.62,
-3.88, 3.01 at h = 1.5, 2, 2.5, 3 (volume-conserving, SVK; exponent −0.68 ± 0.18 against +1/2) and 6.86,
-5.41, 4.49, 4.02 with the neo-Hookean membrane (−0.78 ± 0.03); 4.97, 4.76, 4.62 at ε = 0.25, 0.375, 0.5
-(SVK; −0.105 against −1/4); 4.43 / 5.25 from seed widths 1 / 4. ε = 0.75 (neo-Hookean) does not settle:
-its largest H keeps cycling by 2 % with a period of about 0.4 time units, also with dt ≤ 0.004, so the
-wall-time cap stops it. With uniform thickness (neo-Hookean) the spot spreads into 15, 11 and 4 spots at
-h = 2, 2.5, 3 by t = 100 (radius 7.15, 7.65, 9.57: exponent +0.70 ± 0.26; spacing 4.66, 6.24, 14.2:
-+2.7 ± 0.9), none of them stationary yet.
+Measures (:func:`~femshell.analysis.find_spots`): spot radius √(A_l/(π N_sp)), A_l the area where c > c*; spacing
+2(√(A/(π N_sp)) − √(A_l/(π N_sp))), fitted only when every state of a sweep has two spots or more. Fit: log ρ = a +
+p log x by least squares over the states with spots; σ_p from the residuals (three states or more).
 """
 
 from __future__ import annotations
@@ -77,10 +37,10 @@ from .sphere_patterns import Scenario, draw_top_view, invariant_rows, run_scenar
 NAME = "spot-scaling"
 DESCRIPTION = ("spot radius (and spacing) of the sphere's mechanochemical spot against h (volume-conserving and "
                "uniform thickness) and eps at D = 1.5; fitted exponents vs 1/2 and -1/4")
-SOURCE = ("design.md 1.5 (Zakharov & Dasbiswas section 3; Cerda & Mahadevan, PRL 90, 074302 (2003): "
+SOURCE = ("theory §1.5 (Zakharov & Dasbiswas section 3; Cerda & Mahadevan, PRL 90, 074302 (2003): "
           "h^(1/2) eps^(-1/4)); exponents reported, no tolerance; pass criterion: the invariants of every run")
 
-#: the model of every state: design.md 1.5 with c* = 0.1 and D = 1.5 (the paper's large-spots)
+#: the model of every state: theory §1.5 with c* = 0.1 and D = 1.5 (the paper's large-spots)
 BASE = {"c_star": 0.1, "D": 1.5}
 LAM_MAX = 15.0
 EPS_FIXED = 0.5

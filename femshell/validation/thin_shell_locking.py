@@ -113,7 +113,7 @@ def cylinder_strains():
               [R v_x + u_θ,     2 R (w + v_θ)  ]]            [v_x − w_xθ,   w + 2 v_θ − w_θθ   ]]
 
     with ā = diag(1, R²). The energy per area is (t/4)‖ā⁻¹δa‖² + (t³/12)‖ā⁻¹δb‖²,
-    ‖M‖² = (α/2)(tr M)² + β tr(M²): exactly the element's energy (design.md 1.2) for
+    ‖M‖² = (α/2)(tr M)² + β tr(M²): exactly the element's energy (theory §1.2) for
     small displacements. Returns the formulas as a string.
     """
     return cylinder_strains.__doc__

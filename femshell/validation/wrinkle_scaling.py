@@ -1,17 +1,18 @@
 r"""Wrinkle wavelength of the seed paper's disk against thickness h and growth strain ε.
 
-Reference: the Cerda-Mahadevan scaling λ ∝ h^{1/2} ε^{-1/4} (Cerda & Mahadevan, PRL 90, 074302, 2003; theory
-§1.5), asked of the disk test of theory §1.6 by issue 4: the free disk of :mod:`.disk` (R1 = max(20, 5 R2),
-ν = 0.5) whose inner circle r < R2 grows by the stretch 1 + ε with thickness h/(1 + ε)². The exponents are
+Reference: the Cerda-Mahadevan scaling λ ∝ h^{1/2} ε^{-1/4} (Cerda & Mahadevan, PRL 90, 074302, 2003; theory §1.5),
+asked of the disk test of theory §1.6 by issue 4: the free disk of :mod:`femshell.validation.disk` (R1 = max(20, 5
+R2), ν = 0.5) whose inner circle r < R2 grows by the stretch 1 + ε with thickness h/(1 + ε)². The exponents are
 reported against 1/2 and −1/4 without a tolerance (the paper's are for far-from-threshold wrinkles of a spring
 network); the pass criterion is that every measured state is a resolved stable equilibrium.
 
-State (h, ε): the one the disk reaches when grown slowly from flat (:func:`~.disk.branches.follow`: continuation,
-branch switching, relaxation where the shell snaps); each h is grown once, to its largest ε (:func:`history_plan`),
-and the smaller ε of the ε sweep are snapshots of that history. A state counts when it is an equilibrium (|∇Π| ≤
-``EQUILIBRIUM_RTOL`` of the flat disk's), stable (no negative eigenvalue) and resolved (no mid-edge normal turned
-by 80° or more). Each finished history is checkpointed (:func:`growth_history`). Mesh: the grown region refined
-throughout (edge R2/``resolution``); law: neo-Hookean on the full level, St Venant-Kirchhoff on the quick one.
+State (h, ε): the one the disk reaches when grown slowly from flat
+(:func:`~femshell.validation.disk.branches.follow`: continuation, branch switching, relaxation where the shell
+snaps); each h is grown once, to its largest ε (:func:`history_plan`), and the smaller ε of the ε sweep are
+snapshots of that history. A state counts when it is an equilibrium (|∇Π| ≤ ``EQUILIBRIUM_RTOL`` of the flat
+disk's), stable (no negative eigenvalue) and resolved (no mid-edge normal turned by 80° or more). Each finished
+history is checkpointed (:func:`growth_history`). Mesh: the grown region refined throughout (edge
+R2/``resolution``); law: neo-Hookean on the full level, St Venant-Kirchhoff on the quick one.
 
 Measure: the deflection w (best-fit plane removed) on the circles r = ``RIM_RADII`` · R2 around the rim; the
 state is wrinkled when its largest azimuthal amplitude with k ≥ 2 is at least ``REL_TOL`` of the axisymmetric

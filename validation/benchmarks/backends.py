@@ -20,14 +20,13 @@ import time
 
 import numpy as np
 
+from femshell.mesh.generators import cylinder
+from femshell.shell import AreaLoad, Material, Prescribed, ShellModel, flat_rest_state
 from femshell.solvers.linear import factorize
 from femshell.validation.scordelis_lo import GRAVITY, HALF_ANGLE, LENGTH, NU, REFERENCE, E, R, T
 
 
 def roof(h):
-    from femshell.mesh.generators import cylinder
-    from femshell.shell import AreaLoad, Material, Prescribed, ShellModel, flat_rest_state
-
     mesh = cylinder(R, LENGTH, edge_length=h, angle_range=(np.pi / 2 - HALF_ANGLE, np.pi / 2 + HALF_ANGLE))
     edge = mesh.topology.boundary_vertex_groups["side-a"]
     mid = int(edge[np.argmin(np.abs(mesh.points[edge, 2] - LENGTH / 2))])

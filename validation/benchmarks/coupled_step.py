@@ -1,6 +1,6 @@
 """Wall time of the coupled mechanochemical loop: per step and per run, spots scenario, ~2 500 / 10 000 / 25 000 vertices.
 
-The scenario is the embedded scene ``sphere-spots`` (design.md 1.5: sphere R = 30,
+The scenario is the embedded scene ``sphere-spots`` (theory §1.5: sphere R = 30,
 h = 2 volume-conserving, c* = 0.1, D = 0, Λmax/Λmin = 15/10, b = 100, w = 15, Hs = 0.05,
 β = 1, ν = 0.5; t_final = 100, ds_max = 0.05, dt_max = 1, stationary stop) with only
 ``mesh.n_vertices`` changed. The loop is the library's own: ``femshell.scene.load_scene``
@@ -38,97 +38,7 @@ Newton iterations per step do depend on the phase of the run and on the mesh).
         [--sizes 2500 10000 25000] [--full 2500] [--warmup 3] [--steps 6] [--wall-limit 1500] \\
         [--profile SIZE] [--json out.json]
 
-Measured 2026-11-23 12:09-12:58 UTC, 2 cores shared with other jobs (1-minute load average
-3.4-5.1 during the run, so this process had roughly half the machine), PARDISO back-end,
-MKL threads as femshell sets them (one below 2M stored non-zeros), command as above with
-``--sizes 2500 10000 25000 --full 2500 --wall-limit 1500 --warmup 3 --steps 6``.
-Seconds per accepted step, mean over the timed steps (2 505: all 402 steps of the run;
-10 011 and 25 007: steps 4-9); "check" is the part of Hessian + factorisation spent at
-the converged point, i.e. the stability (inertia) check:
-
-| vertices | unknowns | its/step | LDLᵀ/step | Hessian | LDLᵀ | (check) | solve | line search | growth | H | chemistry | record | step (median) | peak RSS |
-|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|
-| 2 505 | 15 018 | 3.13 | 4.30 | 1.61 | 1.65 | (0.70) | 0.05 | 0.24 | 0.006 | 0.011 | 0.0002 | 0.04 | 3.74 (3.38) | 0.77 GB |
-| 10 011 | 60 054 | 4.33 | 9.00 | 9.04 | 23.84 | (4.10) | 0.33 | 1.06 | 0.027 | 0.05 | 0.0005 | 0.17 | 35.1 (19.3) | 1.56 GB |
-| 25 007 | 150 030 | 2.00 | 3.00 | 15.09 | 35.46 | (15.43) | 0.44 | 0.97 | 0.077 | 0.11 | 0.001 | 0.65 | 53.7 (57.8) | 2.30 GB |
-
-Per call: Hessian 0.39 / 1.7 / 5.0 s, LDLᵀ (incl. inertia) 0.38 / 2.65 / 11.8 s (≈ n^1.5, nested
-dissection). Secant predictor 0.02 / 0.10 / 0.23 s, energy of the new state ≈ H. The 10k mean
-includes one step (step 4) whose Hessian was indefinite away from the minimum: 12 iterations,
-35 factorisations (shifted Newton), 117 s; the 2 505 run had 7 such steps in 402 (5.8-16 s).
-Setup (ShellModel, JAX compilation, ramped initial stable equilibrium): 52 / 138 / 365 s.
-
-Whole run. 2 505 vertices: cut by the 1500 s cap at t = 40.7 of t_final = 100 after 402
-accepted steps (66 rejected by ds_max, no Newton failure), 1 257 Newton iterations, 25.9 min
-with setup; dt grew from 0.01 to ~0.2-0.3 (mean 0.034 / 0.046 / 0.093 / 0.23 over steps
-1-100 / -200 / -300 / -402) and the pattern was still the single seeded spot (max c 0.475,
-not stationary). Extrapolated at the last 20 steps' mean dt (0.29): ~205 more steps, ~39 min.
-10 011 and 25 007 vertices, ESTIMATES with the step and iteration counts of the (extrapolated)
-2 505 run, 607 steps: ~200-280 min and ~590-750 min (~10-12 h) (lower: 607 × the median
-timed step; upper: per-Newton-iteration cost × 1 897 iterations + 607 checks). A full
-25k run under 1 hour here would need ≤ ~6 s per step at ~600 steps, about 10× less than
-measured; the step is bounded by the LDLᵀ factorisations (2/3 of it at 25k) and the
-Hessian assemblies (~1/4), of which one each per step is the stability check.
-
-cProfile of two steps at 25 007 vertices (``--sizes 25000 --full --warmup 1 --steps 2
---profile 25000``, load 4.4-4.6, 48 s per step): PARDISO 61.6 of 96.6 s (14 calls); the
-first factorisation of every Newton solve is a fresh ``Factorization`` (13.3 s: symbolic
-analysis + ordering + symmetry check + numerical) against 9.0 s for a refactorisation,
-because ``minimize`` starts each solve with no factorisation although the pattern never
-changes during a run: ~4.3 s (~9 %) per coupled step, ~0.4 s (~10 %) at 2 505 vertices.
-Hessian 4.6 s per call, of which the JAX element kernels ~3.7 s (``np.asarray`` waiting
-for them) and the sparse scatter (``assembly.matrix``, pattern already cached) 0.77 s;
-the step record's ``count_spots`` 0.74 s per step. Nothing else above 1 %.
-
-Measured 2026-11-25 05:51-06:08 UTC on an idle machine (load 0.1-1.4), 25 007 vertices, steps
-4-9, one process at a time: the code of the table above, 17.9 s per step (factorisations 11.5 s
-for 3 LDLᵀ, Hessian 5.4 s); with the factorisations kept across Newton solves (the symbolic
-analysis done once per run) and Cholesky tried before LDLᵀ (``Refactorizer``), 14.4 s (8.7 s,
-4.7 s); with the quasi-Newton start on the held factorisation (``TimeStepping.quasi_newton``),
-**6.7 s**: 5 quasi-Newton iterations, no Newton iteration, 1 Hessian (1.8 s) and 1 Cholesky
-(2.9 s, both the stability check) per step, the rest the quasi-Newton back-substitutions and
-line searches (1.6 s); setup 134 -> 79 s, peak RSS 2.3 GB. At 2 505 / 10 011 vertices (same
-day, load 2.5-3.2: a 25 000-vertex run shared the machine) 0.69 / 4.3 s per step, setup 11 /
-44 s (10 011: one step needed a Newton iteration after its quasi-Newton ones).
-
-Whole runs with that code (2026-11-25, load 2-4: the two runs shared the machine). 2 505
-vertices (``--sizes 2500 --full 2500 --wall-limit 1500``): t_final = 100 reached in 1 130
-accepted steps (207 rejected by ds_max, 208 Newton iterations besides the quasi-Newton
-ones), 0.79 s per step, setup 11.6 s, **15.0 min** in all; one spot at the end (max c 0.469).
-25 007 vertices, the study's spots scenario (``validation/sphere_patterns_study.py --scenarios
-spots --scale 1.0 --n-vertices 6250 --t-final 100``, same parameters and stop): t = 100 in 354 steps (54 cut),
-7.2 s per step (median 6.5), **45.5 min** with setup; one spot, not stationary. The finer mesh
-took a third of the coarse one's steps (mean dt 0.3-0.7 from t = 20 at 25k, 0.05-0.12 at
-2.5k; why is not analysed), so the estimate above, which carries the coarse run's step count
-over to the finer meshes, overestimates their whole run.
-
-None of those runs became stationary: the staggered chemistry step oscillated at the spot's
-edge (``femshell.coupled``, "Why the staggering limits dt"). With the loop's feedback bound on dt
-(2026-11-25, load 1.7-4.4, the three runs partly sharing the machine) every size reaches a
-stationary spot, measured whole (``--sizes 2500 10000 --full 2500 10000 --wall-limit 2400``;
-25 007 through the study as above):
-
-| vertices | ends | steps (rejected) | s per step | setup | whole run |
-|---|---|---|---|---|---|
-| 2 505 | stationary at t = 72.3 | 964 (102) | 0.78 | 11.5 s | **12.7 min** |
-| 10 011 | stationary at t = 10.6 | 176 (12) | 2.66 | 43.3 s | **8.5 min** |
-| 25 007 | stationary at t = 45.2 | 275 | 6-11 | ~170 s | **37.7 min** |
-
-The step counts do not follow the mesh (the coarse spot creeps for longer), so whole runs are
-measured, not estimated.
-
-Threads (2026-11-25, idle, ``--sizes 25000 --full --warmup 3 --steps 6``): femshell selects
-MKL's sequential layer (bit-for-bit resumes, ``femshell.solvers.linear``): 7.32 s per step
-(Cholesky 3.16 s, Hessian 1.86 s, quasi-Newton 1.82 s), setup 82 s. With
-``MKL_THREADING_LAYER=GNU`` in the environment the Cholesky runs on both cores: **5.58 s** per
-step (1.59 s, 1.80 s, 1.74 s), setup 62 s. (Before the fix that pins the thread count for
-every PARDISO phase, that setting segfaulted at 25 007 vertices.)
-
-Element threads (2026-11-27, ``--sizes 25000 --full --warmup 3 --steps 6``, one run at a time,
-load 1.4-2.8, MKL sequential): the element kernels' chunks on one thread (``FEMSHELL_THREADS=1``)
-10.13 s per step (Hessian 2.46 s, quasi-Newton 2.56 s, Cholesky 4.34 s), setup 113 s; on two
-(the default on 2 cores) **9.21 s** (1.97, 2.09, 4.59 s), setup 109 s. The results are the same
-bit for bit (``femshell.shell.element.element_threads``).
+Results (per-step cost by phase, whole runs, threads) are in docs/studies/benchmarks.md.
 """
 
 from __future__ import annotations
@@ -141,6 +51,9 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+# femshell is imported in the functions that run a size: the parent process only starts one child per size
+# (its own peak memory and thread settings) and does not load femshell, JAX or MKL itself
 
 CATS = ("growth", "predictor", "newton", "hessian", "eg_start", "quasi_newton", "factorize", "check", "solve",
         "line_search", "escape", "curvature", "energy", "chemistry", "record")

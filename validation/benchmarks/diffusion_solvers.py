@@ -1,12 +1,12 @@
-"""Benchmark: linear solvers for the implicit surface-diffusion step of the chemistry (design.md 1.3).
+"""Benchmark: linear solvers for the implicit surface-diffusion step of the chemistry (theory §1.3).
 
 The system of one chemical step is
 
     A c⁺ = b,   A = M (1 + β dt) + dt D K
 
 with M the lumped P1 mass and K the P1 cotangent stiffness of the (deformed) surface
-(measured so; femshell now solves A = M + γ D K, γ = (1 − e^{−β dt})/β ≤ dt: the same
-pattern and kind of spectrum, so the figures carry over with dt D replaced by γ D).
+(femshell solves A = M + γ D K, γ = (1 − e^{−β dt})/β ≤ dt: the same pattern and kind of
+spectrum, so the figures carry over with dt D replaced by γ D).
 A is SPD, one unknown per vertex, ~7 non-zeros per row. The surface moves between
 steps, so every step pays setup (factorisation / AMG hierarchy) + one solve.
 
@@ -18,34 +18,10 @@ Every solution is checked against the splu one.
 Mesh: femshell.mesh.generators.sphere (R = 30), else an icosphere made here.
 Run:  python3 validation/benchmarks/diffusion_solvers.py [--sizes 2500 10000 ...] [--dt 0.1 1 10]
 
-Measured (November 2026, 2 cores under a load average of 8–11 from other jobs: absolute
-times are inflated several-fold and noisy, e.g. 12 Jacobi-CG iterations on 10k unknowns
-took 0.15-1.7 s; one run each, ``--mkl-threads 1``), setup + solve in seconds:
-
-| vertices | dt D/h^2 | pyamg SA-CG (its) | Jacobi-CG (its) | splu | PARDISO |
-|---|---|---|---|---|---|
-| 2 505 | 0.019 / 0.19 / 1.9 | 0.03 / 0.09 / 0.12 (2-4) | **0.0003 / 0.001 / 0.001** (7-15) | 0.06 / 0.09 / 0.06 | 0.18 / 0.08 / 0.08 |
-| 10 011 | 0.077 / 0.77 / 7.7 | 6.1 / 4.8 / 7.3 (3-6) | **0.15** / 1.7 / 2.9 (12-27) | 0.46 / **0.43** / 0.72 | 0.33 / 0.50 / **0.44** |
-| 25 007 | 0.19 / 1.9 / 19 | 5.6 / 8.0 / 5.9 (4-8) | 1.1 / 0.73 / **0.53** (15-40) | 1.2 / 1.9 / 1.1 | **0.53 / 0.48** / 0.61 |
-| 49 963 | 0.38 / 3.8 / 38 | 6.9 / 6.2 / 9.2 (5-9) | 2.8 / 3.3 / 7.1 (20-56) | 4.1 / 4.2 / 3.3 | **2.2 / 1.4 / 1.7** |
-| 99 922 | 0.77 / 7.7 / 77 | 7.5 / 20 / 12 (6-10) | **0.88** / 6.1 / 6.8 (27-79) | 9.0 / 9.1 / 9.1 | 2.5 / **3.6 / 2.9** |
-
-(dt = 0.1 / 1 / 10 with D = beta = 1, R = 30.) Re-measured 2026-11-23 at dt = 1 (load 2.7-5.6,
-``--repeat 3``), setup + solve: 2 505: pyamg 0.12, Jacobi-CG 0.002, splu 0.047, PARDISO 0.036;
-25 007: pyamg 2.75, Jacobi-CG 0.44 (31 its), splu 1.32, PARDISO 0.58; 99 922: pyamg 5.0,
-Jacobi-CG 2.7 (59 its), splu 13.4, PARDISO 3.5. Conclusions that survived the noise:
-pyamg smoothed aggregation is never the fastest here: A is mass-dominated, CG needs only
-2-10 iterations, and the hierarchy setup (which a moving surface pays every step) costs
-more than a whole direct solve. Below ~10k vertices anything is fast (Jacobi-CG or splu,
-< 0.1 s unloaded). From ~25k vertices on PARDISO (SPD, one MKL thread) beats splu by
-2-4x; Jacobi-CG is competitive while dt D / h^2 ≲ 1 (its iteration count grows like
-sqrt(dt D / h^2)) and loses above. So: PARDISO above ~25k vertices, Jacobi-CG as the
-dependency-free alternative for small dt D / h^2, not pyamg.
-
-MKL threading: with its default two threads on this loaded 2-core machine PARDISO's
-solve phase took 0.4-0.5 s on 2 505 unknowns against 0.0007 s with one thread (threads
-spin-wait for cores that other processes hold). Set ``MKL_NUM_THREADS=1`` (or
-``--mkl-threads 1``) on shared machines.
+Conclusion (docs/studies/benchmarks.md): pyamg smoothed aggregation is never the fastest (A is mass-dominated
+and the hierarchy setup, paid every step on a moving surface, costs more than a direct solve); PARDISO (SPD, one
+MKL thread) from ~25k vertices on; Jacobi-CG as the dependency-free alternative while dt D / h² ≲ 1. On a shared
+machine set ``MKL_NUM_THREADS=1`` (or ``--mkl-threads 1``): spinning threads wait for cores other processes hold.
 """
 
 from __future__ import annotations
@@ -190,7 +166,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[2500, 5000, 10000, 25000, 50000, 100000])
     ap.add_argument("--dt", type=float, nargs="+", default=[0.1, 1.0, 10.0])
-    ap.add_argument("--D", type=float, default=1.0, help="diffusion constant (design.md 1.5: 0..1.5)")
+    ap.add_argument("--D", type=float, default=1.0, help="diffusion constant (theory §1.5: 0..1.5)")
     ap.add_argument("--beta", type=float, default=1.0)
     ap.add_argument("--repeat", type=int, default=2, help="best of this many runs per solver")
     ap.add_argument("--mkl-threads", type=int, default=None,

@@ -7,7 +7,7 @@ The test matrix imitates a shell Hessian: on a sphere mesh, the scalar operator
 with L the P1 cotangent Laplacian and M the lumped mass, coupled between 4
 unknowns per vertex by a 4×4 SPD block B: K = S ⊗ B. L M⁻¹ L has the 2-ring
 stencil of a Kirchhoff bending element; K has ~75 non-zeros per row (a real
-Morley-type shell Hessian has ~55, see shared/notes/measured-solvers.md).
+Morley-type shell Hessian has ~55).
 
 Rows: PARDISO SPD (mtype 2) first factorisation (analysis + numerical), a
 refactorisation with new values on the same pattern (numerical only: what a Newton
@@ -18,34 +18,9 @@ reference; SuperLU in symmetric mode.
 
 Run:  python3 validation/benchmarks/linear_solvers.py [--sizes 2500 10000 25000] [--superlu-max 30000]
 
-Measured (November 2026, 2 cores shared with other jobs at a load average of 7–10, so
-the times are inflated and noisy; rankings as in shared/notes/measured-solvers.md).
-PARDISO threads followed femshell.solvers.linear as it was then: one thread below 2 M
-stored non-zeros (the 2.5k and 10k rows), both cores above (25k); solves on one thread.
-femshell now loads MKL's sequential layer unless MKL_THREADING_LAYER is set (bit-for-bit
-resumes), so a run today is single-threaded throughout; set MKL_THREADING_LAYER=GNU to
-measure the threaded rows.
-
-| vertices | unknowns | nnz | solver | first [s] | analysis [s] | refactor [s] | solve [s] |
-|---|---|---|---|---|---|---|---|
-| 2 505 | 10 020 | 0.76 M | pardiso spd | 0.53 | 0.16 | 0.27 | 0.015 |
-| | | | pardiso indefinite (matching) | 0.82 | 0.22 | 0.37 | 0.018 |
-| | | | pardiso indefinite (no matching) | 0.46 | 0.10 | 0.26 | 0.019 |
-| | | | pypardiso default (mtype 11) | 1.60 | | | 0.20 |
-| | | | superlu symmetric mode | 2.87 | | 2.07 | 0.020 |
-| 10 011 | 40 044 | 3.06 M | pardiso spd | 3.22 | 0.62 | 2.28 | 0.070 |
-| | | | pardiso indefinite (matching) | 4.03 | 0.99 | 2.22 | 0.098 |
-| | | | pardiso indefinite (no matching) | 3.26 | 0.66 | 2.24 | 0.084 |
-| | | | pypardiso default (mtype 11) | 8.95 | | | 0.92 |
-| | | | superlu symmetric mode (2 threads run) | 21.9 | | 25.1 | 0.16 |
-| 25 007 | 100 028 | 7.63 M | pardiso spd | 9.57 | 1.75 | 8.22 | 0.28 |
-| | | | pardiso indefinite (matching) | 12.05 | 2.39 | 8.48 | 0.26 |
-| | | | pardiso indefinite (no matching) | 9.79 | 1.69 | 6.81 | 0.32 |
-| | | | pypardiso default (mtype 11) | 18.7 | | | 0.76 |
-| | | | superlu symmetric mode | 74.3 | | 83.3 | 0.33 |
-
-PARDISO factor: 53 M non-zeros (~0.6 GB) at 25k vertices; SuperLU 138 M (~2.9 GB).
-Inertia of K − σI with 10 eigenvalues below σ: (n − 10, 10, 0) at every size.
+Results (PARDISO SPD and indefinite, pypardiso, SuperLU at 2.5k-25k vertices) are in docs/studies/benchmarks.md.
+femshell loads MKL's sequential layer unless MKL_THREADING_LAYER is set (bit-for-bit resumes); set
+MKL_THREADING_LAYER=GNU to measure threaded factorisations.
 """
 
 from __future__ import annotations
@@ -56,6 +31,11 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from femshell.chemistry import P1Assembler
+from femshell.mesh.generators import sphere
+from femshell.solvers.linear import available_backends, factorize, smallest_eigenvalues
+from femshell.solvers.sparse_matrix import _canonical_csr, _check_values
+
 
 def factor_mb(fac):
     """Size of the factor's values in MB (non-zeros x 8 B; the indices come on top). The change of the
@@ -65,15 +45,11 @@ def factor_mb(fac):
 
 
 def sphere_mesh(n_vertices, radius=30.0):
-    from femshell.mesh.generators import sphere
-
     m = sphere(radius=radius, n_vertices=n_vertices, seed=0)
     return m.points, m.triangles
 
 
 def shell_like_matrix(points, triangles, radius=30.0):
-    from femshell.chemistry import P1Assembler
-
     asm = P1Assembler(triangles, len(points))
     L = asm.stiffness(points)
     m = asm.mass_lumped(points)
@@ -92,8 +68,6 @@ def timed(fn, *args, **kw):
 
 
 def bench(n_target, superlu_max, rows):
-    from femshell.solvers.linear import available_backends, factorize, smallest_eigenvalues
-
     pts, tri = sphere_mesh(n_target)
     K = shell_like_matrix(pts, tri)
     n = K.shape[0]
@@ -116,8 +90,6 @@ def bench(n_target, superlu_max, rows):
               f"  solve {t_solve:6.3f} s  residual {res:.1e}  inertia {fac.inertia}")
 
     # the symmetry check costs one sparse transpose: time it separately
-    from femshell.solvers.sparse_matrix import _canonical_csr, _check_values
-
     _, t_check = timed(_check_values, _canonical_csr(K), True)
     print(f"  input checks (finite, zero rows, symmetry): {t_check:.2f} s")
 

@@ -6,7 +6,7 @@
 Prints one line per mesh: target and actual vertex count, relative error, and
 the wall time of the generator call (gmsh meshing + extraction + orientation),
 best of ``--repeat`` runs. The sphere has the seed paper's radius R = 30
-(design.md section 1.5); the generators run gmsh on one thread.
+(theory §1.5); the generators run gmsh on one thread.
 """
 
 from __future__ import annotations

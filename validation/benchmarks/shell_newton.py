@@ -11,18 +11,7 @@ per invocation: the previous mesh's peak stays in it).
 
     python validation/benchmarks/shell_newton.py [--sizes 2500 10000 25000]
 
-Measured 2026-11-23 (2 cores, load about 1.5 from other jobs; PARDISO with MKL sequential, see
-femshell/solvers/linear.py), before and after the split element Hessian (femshell/shell/element.py):
-
-| vertices | Hessian (jax.hessian) | Hessian (split) | factor | refactor | solve | Newton it (before / after) | peak RSS |
-|---|---|---|---|---|---|---|---|
-| 2 505 | 0.47 s | 0.23 s | — | — | — | 0.74 / 0.55 s | 0.66 GB |
-| 25 007 | 5.3 s | 2.3-3.0 s | 10.6 s | 6.8-7.1 s | 0.14 s | 12.6 / 9.8-10.2 s | 2.3 GB |
-
-Per element the split Hessian costs 52-67 µs against 141-152 µs for jax.hessian; most of it is
-XLA-CPU forward-over-reverse AD of the three 10-unknown edge functions q_k. One iteration at 25k
-vertices is bounded by the PARDISO refactorisation (~7 s, one thread) and the assembly (2-3 s):
-the issue's targets (< 5 s per iteration, < 1 s assembly) are not met.
+Results (assembly, factorisation and Newton iteration per mesh) are in docs/studies/benchmarks.md.
 """
 
 from __future__ import annotations

@@ -1,10 +1,13 @@
-"""The disk study of the seed paper's wrinkling test (the ``disk-wrinkles`` case, :mod:`..disk_wrinkles`).
+"""The disk study of the seed paper's wrinkling test (the case :mod:`~femshell.validation.disk_wrinkles`).
 
-:mod:`.model`: the disk, its rest state and problem, and its states moved between meshes and scales;
-:mod:`.measures`: the wrinkle count, the rim's lobes, which end state counts and the paper's counts;
-:mod:`.branches`: the equilibria followed in ε (continuation, branch switching, relaxation) and in R2;
-:mod:`.cases`: the levels' cases, checkpoints, worker processes and scaled twins;
-:mod:`.exchange`: end states carried to the neighbouring radii.
+* :mod:`~femshell.validation.disk.model`: the disk, its rest state and problem, its states moved between
+  meshes and scales;
+* :mod:`~femshell.validation.disk.measures`: the wrinkle count, the rim's lobes, which end state counts,
+  the paper's counts;
+* :mod:`~femshell.validation.disk.branches`: the equilibria followed in ε (continuation, branch switching,
+  relaxation) and in R2;
+* :mod:`~femshell.validation.disk.cases`: the levels' cases, checkpoints, worker processes, scaled twins;
+* :mod:`~femshell.validation.disk.exchange`: end states carried to the neighbouring radii.
 """
 
 from .branches import (DS, DS_MAX, FOLD_COSINE, LOCATE_RTOL, MAX_MODES, MAX_STEPS, MAX_SWITCHES, SWITCH_AMPLITUDE,

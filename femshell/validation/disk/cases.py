@@ -24,7 +24,7 @@ from .model import EPS_END, Disk, magnified, outer_radius, warm_up
 
 #: (h, R2, resolution) cases of each level (resolution: edges per R2 along the grown circle; with
 #: ``refine_inside`` the whole grown region r < R2 has that edge length) and the membrane law (SVK has no stable
-#: state at h = 2, R2 <= 1.5: module docstring of :mod:`..disk_wrinkles`). The thin disks' rims fold into lobes
+#: state at h = 2, R2 <= 1.5: module docstring of :mod:`~.disk_wrinkles`). The thin disks' rims fold into lobes
 #: across r = 0.6-1.0 R2, which needs the grown region refined throughout and, at h = 0.25, resolution 32 (on
 #: edge 0.125 the lobes fold within one element row); one resolution gives the thin series one mesh density
 #: relative to R2, and at R2 = 4 it would be edge 0.125 again, so the thin series stops at R2 = 3. h = 2 goes
