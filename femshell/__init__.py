@@ -7,18 +7,14 @@ a quick start. The modules are imported on first use, so ``import femshell`` is 
 >>> import femshell
 >>> round(float(femshell.growth.contractility(0.1)), 2)      # Λ(c*) = (Λmax + Λmin)/2
 12.5
+
+Importing femshell changes no process setting; :func:`femshell.configure` (called by the CLI)
+sets BLAS threads and JAX's compilation cache explicitly.
 """
 
 import importlib
-import os
 
-# numpy's own BLAS (OpenBLAS) on one thread, unless the environment says otherwise. Its vector
-# products (the quasi-Newton recursion, norms) gain nothing from threads, and its idle worker
-# spins for about 0.1 s after each, taking a core from the PARDISO solve or the element kernels
-# that follow: at 25k vertices a quasi-Newton solve took 0.12 s instead of 0.07 s and an energy
-# with gradient 0.126 s instead of 0.099 s (2 idle cores, measured). It must be set before numpy
-# is loaded; where numpy was imported before femshell it has no effect.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+from .config import configure
 
 __version__ = "0.1.0"
 

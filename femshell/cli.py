@@ -13,6 +13,8 @@ import time
 import warnings
 from pathlib import Path
 
+from .config import configure
+
 MESH_KINDS = ("sphere", "disk", "plate", "strip", "annulus", "cylinder", "hemisphere")
 #: the kinds each geometric option of `femshell mesh` applies to
 MESH_OPTIONS = {"radius": ("sphere", "disk", "cylinder", "hemisphere"), "inner_radius": ("disk", "annulus"),
@@ -304,6 +306,7 @@ def _cmd_render(args):
 
 
 def main(argv=None):
+    configure()          # process settings (BLAS threads, JAX cache): femshell.config
     parser = _parser()
     args, unknown = parser.parse_known_args(argv)
     if unknown:     # said with the subcommand's usage, not the top level's

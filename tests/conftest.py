@@ -4,6 +4,11 @@ import signal
 
 import pytest
 
+import femshell
+
+# as the CLI does: numpy's BLAS on one thread, JAX's compiled kernels kept between test runs
+femshell.configure()
+
 
 @pytest.fixture
 def ctrl_c_raises():

@@ -224,13 +224,6 @@ def test_strict_reproducibility_only_on_the_sequential_layer(layer, cbwr):
     assert got == str(cbwr)
 
 
-@pytest.mark.parametrize("given, expected", [(None, "1"), ("3", "3")])
-def test_numpys_blas_on_one_thread_unless_the_environment_says(given, expected):
-    # OpenBLAS's idle worker spins ~0.1 s after each vector product and took a core from the
-    # PARDISO solves of the quasi-Newton loop (0.12 s instead of 0.07 s at 25k vertices)
-    assert _variable_after_import("femshell", "OPENBLAS_NUM_THREADS", {"OPENBLAS_NUM_THREADS": given}) == expected
-
-
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_refactorizer_inertia_through_a_loss_of_definiteness(backend):
     """A shifted Laplacian swept through its lowest eigenvalues, the way Newton meets a buckling

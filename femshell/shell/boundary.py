@@ -2,7 +2,7 @@
 
 Each condition resolves, for a given mesh, into fixed position components (with
 prescribed values) and, for the bending part, a kind per boundary edge
-(free / clamped / symmetry, see :mod:`femshell.shell.element`).
+(free / clamped / symmetry, see :mod:`femshell.shell.bending`).
 
 Conditions
 ----------
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .element import CLAMPED, SYMMETRY
+from .bending import CLAMPED, SYMMETRY
 
 AXES = {"x": 0, "y": 1, "z": 2}
 

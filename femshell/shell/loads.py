@@ -28,7 +28,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .boundary import _curve_edges
-from .element import mid_edge_normals
+from .bending import mid_edge_normals
+from .element import float64
 
 
 def _area_vectors(points, triangles):
@@ -166,11 +167,13 @@ class FollowerPressure:
         return float(self.pressure * np.einsum("mi,mi->m", x[:, 0], np.cross(x[:, 1], x[:, 2])).sum() / 6.0)
 
     def gradient(self, q):
-        g = np.asarray(_vol_grad(q[self._dofs]))
+        with float64():
+            g = np.asarray(_vol_grad(q[self._dofs]))
         return self.pressure * np.bincount(self._dofs.ravel(), g.ravel(), minlength=self._n)
 
     def hessian_blocks(self, q):
-        return self._dofs, self.pressure * np.asarray(_vol_hess(q[self._dofs]))
+        with float64():
+            return self._dofs, self.pressure * np.asarray(_vol_hess(q[self._dofs]))
 
 
 def _edge_rotation(q, kind, direction, sign, k, reference_normal, axis):
@@ -227,7 +230,8 @@ class EdgeMoment:
         self._phi, self._dphi, self._ddphi = _ROTATION, _ROTATION_GRAD, _ROTATION_HESS
 
     def _call(self, fn, q):
-        return np.asarray(fn(q[self._dofs], self._kind, self._dir, self._sign, self._local, self._ref, self._axis))
+        with float64():
+            return np.asarray(fn(q[self._dofs], self._kind, self._dir, self._sign, self._local, self._ref, self._axis))
 
     def angles(self, q):
         """Rotation of each edge's normal from its rest normal, continuous across ±π."""

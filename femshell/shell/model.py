@@ -22,14 +22,12 @@ True
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import numpy as np
 
 from . import element as el
 from .assembly import SparseAssembler
 from .boundary import rigid_body_pins
+from .materials import Material
 from .rest_state import RestState
 
 
@@ -38,134 +36,11 @@ from .rest_state import RestState
 FOLD_LIMIT_DEG = 80.0
 
 
-@dataclass(frozen=True)
-class Material:
-    """Isotropic material: Young's modulus E (energy unit), Poisson ratio nu and the membrane law.
-
-    law : "svk" (St Venant–Kirchhoff, design.md 1.2) or "neo-hookean" (the same at small
-    strain, elliptic under any compression; :mod:`femshell.shell.element`).
-
-    The default ν = 0.3 is the engineering benchmarks' value; the paper's cell sheets use ν = 0.5
-    (design.md 1.5), the default of the scenes and of :class:`femshell.coupled.MechanochemicalModel`.
-    """
-
-    E: float = 1.0
-    nu: float = 0.3
-    law: str = "svk"
-
-    def __post_init__(self):
-        for name in ("E", "nu"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-                raise ValueError(f"{name} must be a number, got {v!r}")
-        if not (np.isfinite(self.E) and self.E > 0):
-            raise ValueError(f"Young's modulus E must be > 0, got {self.E}")
-        if not (-1.0 < self.nu <= 0.5):
-            raise ValueError(f"Poisson ratio nu must be in (-1, 0.5], got {self.nu}")
-        if self.law not in el.MEMBRANE_LAWS:
-            raise ValueError(f"membrane law must be one of {tuple(el.MEMBRANE_LAWS)}, got {self.law!r}")
-
-    @property
-    def alpha(self) -> float:
-        """α = E ν / (1 − ν²)."""
-        return self.E * self.nu / (1.0 - self.nu**2)
-
-    @property
-    def beta(self) -> float:
-        """β = E / (2 (1 + ν))."""
-        return self.E / (2.0 * (1.0 + self.nu))
-
-    def ellipticity_margin(self, C) -> np.ndarray:
-        r"""Smallest in-plane acoustic eigenvalue of the membrane law at C = ā⁻¹a, over β (per element).
-
-        Negative where the membrane is not elliptic: a plane wave of in-plane displacement
-        a e^{i k n·x} lowers the energy for some a, n at every wavelength, the mesh scale first.
-        For St Venant–Kirchhoff with principal stretches λ1, λ2 (C's eigenvalues λ²) and
-        F = diag(λ1, λ2) the acoustic tensor is
-
-        .. math:: A(n) = (\alpha + \beta) (F n)(F n)^T + \beta F^2
-                  + \big(\tfrac{\alpha}{2}(\lambda_1^2 + \lambda_2^2 - 2) + \beta\, n^T (F^2 - I) n\big) I,
-
-        minimised here over 91 directions n in a quarter turn (the law is isotropic). Under
-        equibiaxial compression it changes sign at λ² = (α + β)/(α + 2β). The neo-Hookean law
-        is polyconvex, hence elliptic at every stretch: +inf. (Out-of-plane waves, wrinkles,
-        are the bending term's business and are not counted.)
-
-        >>> float(Material(nu=0.5).ellipticity_margin(np.eye(2)[None] * 0.7)[0]) < 0     # λ = 0.84
-        True
-        """
-        C = np.asarray(C, dtype=float).reshape(-1, 2, 2)
-        if self.law != "svk":
-            return np.full(len(C), np.inf)
-        # C = ā⁻¹a is not symmetric, but its eigenvalues (λ², of a v = λ² ā v) are real and positive
-        tr, det = C[:, 0, 0] + C[:, 1, 1], C[:, 0, 0] * C[:, 1, 1] - C[:, 0, 1] * C[:, 1, 0]
-        root = np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
-        lam2 = np.stack([0.5 * tr - root, 0.5 * tr + root], axis=1)
-        F = np.sqrt(np.clip(lam2, 0.0, None))
-        al, be = self.alpha, self.beta
-        phi = np.linspace(0.0, 0.5 * np.pi, 91)
-        n = np.stack([np.cos(phi), np.sin(phi)], axis=1)                        # (d, 2)
-        Fn = F[:, None, :] * n[None]                                            # (m, d, 2)
-        shift = 0.5 * al * (lam2.sum(axis=1) - 2.0)[:, None] + be * (n[None] ** 2 * (lam2[:, None] - 1.0)).sum(-1)
-        A = (al + be) * Fn[..., :, None] * Fn[..., None, :]
-        A = A + be * (lam2[:, None, :, None] * np.eye(2)) + shift[..., None, None] * np.eye(2)
-        tr = A[..., 0, 0] + A[..., 1, 1]
-        det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
-        smallest = 0.5 * tr - np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
-        return smallest.min(axis=1) / be
-
-    @property
-    def svk_ellipticity_stretch(self) -> float:
-        r"""Principal stretch (current/target) below which the St Venant–Kirchhoff membrane law loses
-        ellipticity under equibiaxial compression: :math:`\sqrt{(\alpha + \beta)/(\alpha + 2\beta)}`.
-
-        With M = ā⁻¹a − I and W = (α/2)(tr M)² + β tr M² (design.md 1.2), the state a = λ² ā perturbed
-        by the deformation gradient λ(I + G) of a plane wave, G = a⊗n, has the second variation
-        W₂ = 2αλ⁴(a·n)² + βλ⁴|G + Gᵀ|² + 2(α + β)(λ² − 1)λ²|a|². For a shear wave (a ⊥ n,
-        |G + Gᵀ|² = 2|a|²) it vanishes at λ² = (α + β)/(α + 2β). Below it a compressed membrane is
-        unstable at every wavelength, the shortest (the mesh size) first: a material instability of
-        the SVK law, not a buckling of the shell.
-
-        >>> round(Material(nu=0.5).svk_ellipticity_stretch, 4)     # √(3/4)
-        0.866
-        """
-        return math.sqrt((self.alpha + self.beta) / (self.alpha + 2.0 * self.beta))
-
-    def non_elliptic(self, C) -> np.ndarray:
-        r"""``ellipticity_margin(C) < 0`` (bool per element), evaluated in full only where a lower
-        bound of the margin is negative. With :math:`\lambda_1^2 \le \lambda_2^2` the eigenvalues
-        of C, dropping the positive semi-definite dyad and using :math:`n^T(F^2 - I)n \ge
-        \lambda_1^2 - 1` in the acoustic tensor gives
-
-        .. math:: A(n) \succeq \big(\beta (2\lambda_1^2 - 1) + \tfrac{\alpha}{2}(\lambda_1^2 + \lambda_2^2 - 2)\big) I,
-
-        which is exact under equibiaxial compression; elements where it is positive are elliptic.
-        The cheap check for every step of a run.
-
-        >>> Material(nu=0.5).non_elliptic(np.stack([np.eye(2) * 0.7, np.eye(2) * 0.8])).tolist()
-        [True, False]
-        """
-        C = np.asarray(C, dtype=float).reshape(-1, 2, 2)
-        out = np.zeros(len(C), bool)
-        if self.law != "svk":
-            return out
-        tr, det = C[:, 0, 0] + C[:, 1, 1], C[:, 0, 0] * C[:, 1, 1] - C[:, 0, 1] * C[:, 1, 0]
-        smallest = 0.5 * tr - np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
-        bound = self.beta * (2.0 * smallest - 1.0) + 0.5 * self.alpha * (tr - 2.0)
-        doubtful = np.flatnonzero(bound < 0.0)
-        out[doubtful] = self.ellipticity_margin(C[doubtful]) < 0
-        return out
-
-    def bending_stiffness(self, h: float) -> float:
-        """B = E h³ / (12 (1 − ν²))."""
-        return self.E * h**3 / (12.0 * (1.0 - self.nu**2))
-
-
 def _pinned_rigidly(x, pins, target, size):
     """x (n, 3) moved by the rigid motion that gives the six pinned (vertex, component) pairs their values in
     target (:func:`~femshell.shell.boundary.rigid_body_pins`: six equations for the six parameters of the
     motion, solved by least squares from the identity; ValueError when they have no solution)."""
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares     # deferred: scipy.optimize is slow to import, rarely needed
     from scipy.spatial.transform import Rotation
 
     v, c = np.array(pins).T
@@ -189,11 +64,8 @@ def rest_edge_normals(points, topology, face_normals):
     its mean (at the centroid) the face normal n_f, gives n = 3 n_f - n1 - n2 at the boundary
     edge's midpoint (then made orthogonal to the edge and unit). The face normal alone would
     be off by the curvature times the distance from centroid to edge, an O(h) error of a
-    clamped curved edge: a hemisphere in its natural shape, clamped at the equator, kept 1.2 %
-    and 0.5 % (215, 801 vertices) of the energy of bending a flat sheet into it; with the
-    extrapolation 0.11 % and 0.15 % (on irregular rim triangles the mean normal of an interior
-    edge is itself only first-order accurate, so the error does not fall cleanly with h). Exact
-    on a plane. A face with two or three boundary edges (a corner) keeps its face normal.
+    clamped curved edge (a naturally shaped hemisphere clamped at its equator would keep about
+    ten times more bending energy). Exact on a plane. A face with two or three boundary edges (a corner) keeps its face normal.
     """
     t = topology
     ef = t.edge_faces
@@ -220,7 +92,7 @@ def rest_edge_normals(points, topology, face_normals):
 
 
 class ShellModel:
-    """The discrete shell energy of design.md 1.2 with exact derivatives (see module docstring).
+    """The discrete shell energy (docs/theory.md §2) with exact derivatives (see module docstring).
 
     Parameters
     ----------
@@ -338,11 +210,11 @@ class ShellModel:
         return self.q_fixed[self.free].copy()
 
     def from_edge_angles(self, u: np.ndarray) -> np.ndarray:
-        """Free unknowns written with edge *angles* θ (femshell before 2026-11-28, where
+        """Free unknowns written with edge *angles* θ (older checkpoints, where
         n_e = cos θ m + sin θ t×m) as this model's edge unknowns tan θ: the same mid-edge normals.
 
         A ValueError if an angle is at or past ±π/2: that normal pointed away from its faces (a
-        spurious state, :mod:`femshell.shell.element`) and has no counterpart.
+        spurious state, :mod:`femshell.shell.bending`) and has no counterpart.
         """
         q = self.full(u)
         n_pos = 3 * self.mesh.n_vertices
@@ -417,7 +289,7 @@ class ShellModel:
                 mat.alpha, mat.beta, self.edge_kind_el, self.edge_direction_el, self.face_edge_sign)
 
     def strain_energy(self, u) -> float:
-        return float(np.sum(self._kernels.energy(*self._element_args(self.full(u)))))
+        return float(np.sum(self._kernels.evaluate(*self._element_args(self.full(u)))[0]))
 
     def energy_parts(self, u):
         """Membrane and bending energy per element, two (m,) arrays."""
@@ -437,7 +309,7 @@ class ShellModel:
 
     def _element_values_and_gradient(self, u):
         """Element strain energies (m,) and the assembled ∂U/∂u, from one compiled pass."""
-        e, g = self._kernels.value_and_grad(*self._element_args(self.full(u)))
+        e, g, _ = self._kernels.evaluate(*self._element_args(self.full(u)), gradient=True)
         return e, self.assembler.vector(np.asarray(g))
 
     def gradient(self, u) -> np.ndarray:
@@ -469,7 +341,8 @@ class ShellModel:
         """∂²Π/∂u² as a CSR matrix over the free unknowns (symmetric, possibly indefinite)."""
         q = self.full(u)
         interior = (self.edge_kind_el == el.INTERIOR).all(axis=1)  # these skip the boundary branches
-        K = self.assembler.matrix(np.asarray(self._kernels.hessian_grouped(interior, *self._element_args(q))))
+        _, _, h = self._kernels.evaluate(*self._element_args(q), hessian=True, interior=interior)
+        K = self.assembler.matrix(np.asarray(h))
         own_pattern = True
         for i, load in enumerate(self.loads):
             blocks = load.hessian_blocks(q)
@@ -519,7 +392,7 @@ class ShellModel:
 
     def edge_turning_angles(self, u) -> np.ndarray:
         """Angle (degrees, in [0, 90)) by which each edge's mid-edge normal is turned about the edge from
-        the mean normal of its faces: arctan |θ| of the edge unknown θ (:func:`element.turned_normal`)."""
+        the mean normal of its faces: arctan |θ| of the edge unknown θ (:func:`~femshell.shell.bending.turned_normal`)."""
         return np.degrees(np.arctan(np.abs(self.full(u)[3 * self.mesh.n_vertices:])))
 
     def over_folded_edges(self, u) -> np.ndarray:
@@ -563,5 +436,5 @@ class ShellModel:
 
     def fundamental_forms(self, u):
         """Current first and second fundamental forms per element, (m,2,2) each."""
-        a, b = el.batch_forms(*self._element_args(self.full(u)))
+        a, b = self._kernels.forms(*self._element_args(self.full(u)))
         return a, b

@@ -2,7 +2,7 @@ r"""The rest (target) state of a shell: target metric ā, curvature b̄ and thic
 
 All three are 2x2 tensors (ā, b̄) or scalars (h̄) in each triangle's barycentric
 coordinates :math:`(u, v) = (\lambda_1, \lambda_2)` of the reference mesh, the same
-coordinates in which the element measures the current forms (design.md 1.2).
+coordinates in which the element measures the current forms (docs/theory.md §2).
 
 Example: a flat disk that wants to become a spherical cap of radius R has
 ``ā = ā0`` and ``b̄ = ā0 / R`` (:func:`natural_curvature`); a uniformly grown sheet
@@ -91,7 +91,7 @@ def uniform_growth(points, triangles, thickness, strain: float, k0: float = 0.0,
                    volume_conserving: bool = False) -> RestState:
     """Isotropic growth by the linear stretch s = 1 + strain: ā = s² ā0, b̄ = k0 ā.
 
-    With ``volume_conserving`` the thickness becomes h / s² (design.md 1.1).
+    With ``volume_conserving`` the thickness becomes h / s² (docs/theory.md §5).
     """
     try:
         g = float(strain) if np.ndim(strain) == 0 and not isinstance(strain, (bool, str)) else math.nan

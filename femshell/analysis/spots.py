@@ -1,7 +1,7 @@
-r"""Pattern measures of the seed paper (design.md 1.5) and wrinkle counts (design.md 1.6).
+r"""Pattern measures of the seed paper: spots, ridges, their radius and spacing (docs/theory.md).
 
 Plain functions over arrays: ``points`` (n, 3), ``triangles`` (m, 3), vertex fields (n,).
-Lengths and areas are in the units of ``points`` (cell sizes, design.md section 3);
+Lengths and areas are in the units of ``points`` (cell sizes);
 angles in radians. Nothing here knows the shell or the time loop.
 
 **Spots.** The tissue is "patterned" where the contractility is low, Λ(c) below the
@@ -27,16 +27,15 @@ straight, bent or closed, and it grows with the number of round spots fused into
 (the paper's "lines of bulges"). It does not use the component's mean tangent plane,
 which a bent or closed band does not have. Components with e > ``ridge_elongation``
 (default 2.5) are ridges, the others spots; N_sp counts both kinds, as the paper's N_sp
-counts connected regions. Measured on a sphere of radius 10 with edges 0.76: e = 1.00–1.05
-for disks of radius 1.5–5, 1.99 and 3.88 for ellipses of axis ratio 2 and 4, within 4 %
-of 4L/(πw) for bands bent through 90° and 240°. Each component also reports the aspect
+counts connected regions. On a sphere of radius 10 with edges 0.76, e is 1.00–1.05 for
+disks, within 4 % of a/b for ellipses and of 4L/(πw) for bent bands. Each component also reports the aspect
 ratio √(λ1/λ2) of its second moment in its mean tangent plane and its isoperimetric ratio
 P²/(4π A) (1 for a disk), which describe it but do not classify it.
 Two limits of r_in: it is measured in straight lines in space, so on a surface folded
 back on itself another fold's level line can be nearer than the component's own; and a
 mesh's free boundary does not count as boundary, so a region cut by it (a half-disk at
-the edge of a plate) measures as the whole it is cut from would (r_in 0.59 and e 0.5 for a
-half-disk of radius 0.6, measured; 2 expected). Every chemistry scene is a closed sphere.
+the edge of a plate) measures as the whole it is cut from would (e 0.5 for a half-disk, 2
+expected). Every chemistry scene is a closed sphere.
 
 Example
 -------
@@ -58,45 +57,9 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ._checks import finite, finite_vector, integer, triangle_array, vertex_indices
-from .geometry import triangle_areas
-
-__all__ = ["vertex_areas", "spot_radius", "spot_spacing", "Region", "PatternMeasures", "find_spots",
-           "count_spots", "same_pattern", "polar_profile", "PolarProfile", "azimuthal_spectrum", "azimuthal_power",
-           "count_wrinkles"]
-
-
-def _mesh(points, triangles):
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
-        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-    if pts.shape[1] == 2:
-        pts = np.column_stack([pts, np.zeros(len(pts))])
-    tri = triangle_array(triangles)
-    vertex_indices(tri, len(pts))
-    if not np.all(np.isfinite(pts)):
-        raise ValueError(f"points hold NaN or infinity at {int((~np.isfinite(pts)).any(axis=1).sum())} vertices")
-    return pts, tri.astype(np.int64)
-
-
-def _count(name, v, lo, hi):
-    """An integer argument in [lo, hi] (a whole float such as 18.0 is accepted)."""
-    return integer(name, v, lo, f"an integer in [{lo}, {hi}]", hi)
-
-
-def _field(values, n, name="values"):
-    v = np.asarray(values, dtype=float)
-    if v.shape != (n,):
-        raise ValueError(f"{name} must have one value per vertex, shape ({n},), got {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} holds {int((~np.isfinite(v)).sum())} non-finite value(s)")
-    return v
-
-
-def vertex_areas(points, triangles) -> np.ndarray:
-    """Lumped vertex areas, one third of the adjacent triangle areas (length²), shape (n,)."""
-    pts, tri = _mesh(points, triangles)
-    return np.bincount(tri.ravel(), weights=np.repeat(triangle_areas(pts, tri) / 3.0, 3), minlength=len(pts))
+from .._checks import finite
+from ..geometry import triangle_areas
+from .fields import _count, _field, _mesh
 
 
 def spot_radius(area_low: float, n_spots: int) -> float:
@@ -237,7 +200,7 @@ class Region:
 
 @dataclass
 class PatternMeasures:
-    """The paper's pattern measures (design.md 1.5) of one field c on one surface.
+    """The paper's pattern measures of one field c on one surface.
 
     ``n_spots`` is N_sp, the number of connected low-Λ regions of both kinds;
     ``n_ridges`` how many of them are elongated ("ridge"); ``spot_radius`` and
@@ -468,211 +431,3 @@ def same_pattern(a: PatternMeasures, b: PatternMeasures, tol: float = 0.02) -> b
     d = np.linalg.norm(xa[:, None, :] - xb[None, :, :], axis=2)
     reach = tol * math.sqrt(a.area_low / (math.pi * len(a.regions)))
     return bool(d.min(axis=1).max() <= reach and d.min(axis=0).max() <= reach)
-
-
-# ----------------------------------------------------------------------------- profiles
-
-@dataclass
-class PolarProfile:
-    """Binned means against the polar angle θ from the pole (radians, 0 at the pole).
-
-    ``theta`` bin centres (k,), ``mean`` area-weighted means (k,) (NaN in empty bins),
-    ``count`` vertices per bin (k,), ``edges`` bin edges (k+1,).
-    """
-
-    theta: np.ndarray
-    mean: np.ndarray
-    count: np.ndarray
-    edges: np.ndarray
-
-
-def polar_profile(points, values, n_bins: int = 18, *, triangles=None, pole=(0.0, 0.0, 1.0),
-                  center=None) -> PolarProfile:
-    """Means of a vertex field in bins of the polar angle (the paper's Fig. 6d: c and H against θ).
-
-    The angle is measured at ``center`` (default: the centroid of the points) from the
-    direction ``pole``. With ``triangles`` the mean is weighted by the lumped vertex
-    areas, otherwise every vertex counts the same.
-
-    >>> import numpy as np
-    >>> from femshell.mesh.generators import sphere
-    >>> from femshell.analysis import polar_profile
-    >>> m = sphere(10.0, n_vertices=2000)
-    >>> p = polar_profile(m.points, m.points[:, 2] / 10, n_bins=6, triangles=m.triangles)   # cos θ
-    >>> np.round(p.theta, 2)                # bin centres: 30° bands
-    array([0.26, 0.79, 1.31, 1.83, 2.36, 2.88])
-    >>> exact = [0.933, 0.683, 0.25, -0.25, -0.683, -0.933]    # the area means of cos θ over the bands
-    >>> bool(np.allclose(p.mean, exact, atol=0.01))
-    True
-    """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3:
-        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-    if not np.all(np.isfinite(pts)):
-        raise ValueError(f"points hold NaN or infinity at {int((~np.isfinite(pts)).any(axis=1).sum())} vertices")
-    v = _field(values, len(pts), "values")
-    n_bins = _count("n_bins", n_bins, 1, 100_000)
-    p = finite_vector("pole", pole, 3)
-    if not np.linalg.norm(p) > 0:
-        raise ValueError(f"pole must be a non-zero 3-vector, got {pole!r}")
-    p = p / np.linalg.norm(p)
-    ctr = pts.mean(axis=0) if center is None else finite_vector("center", center, 3)
-    d = pts - ctr
-    r = np.linalg.norm(d, axis=1)
-    theta = np.arccos(np.clip((d @ p) / np.maximum(r, 1e-300), -1.0, 1.0))
-    w = np.ones(len(pts)) if triangles is None else vertex_areas(pts, triangles)
-    edges = np.linspace(0.0, math.pi, int(n_bins) + 1)
-    idx = np.clip(np.searchsorted(edges, theta, side="right") - 1, 0, int(n_bins) - 1)
-    num = np.bincount(idx, weights=w * v, minlength=n_bins)
-    den = np.bincount(idx, weights=w, minlength=n_bins)
-    cnt = np.bincount(idx, minlength=n_bins)
-    mean = np.divide(num, den, out=np.full(n_bins, np.nan), where=den > 0)
-    return PolarProfile(0.5 * (edges[1:] + edges[:-1]), mean, cnt, edges)
-
-
-# ----------------------------------------------------------------------------- wrinkles (disk test)
-
-def _sample_on_mesh(xy, tri, v, q):
-    """Linear interpolation of a vertex field at points q (k, 2) of a flat triangulation; NaN outside.
-
-    The points are taken in runs of 16 (neighbours on a circle), each tested only against the triangles
-    whose bounding box meets the run's: the search over all triangles cost 1.25 s per call at 50 000."""
-    a, b, c = xy[tri[:, 0]], xy[tri[:, 1]], xy[tri[:, 2]]
-    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
-    box_lo, box_hi = np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
-    margin = 1e-9 * float(np.ptp(xy, axis=0).max())    # the inside test below admits points 1e-12 outside
-    out = np.full(len(q), np.nan)
-    tol = -1e-12
-    for start in range(0, len(q), 16):
-        run = q[start:start + 16]
-        lo, hi = run.min(axis=0) - margin, run.max(axis=0) + margin
-        near = np.flatnonzero(np.all(box_hi >= lo, axis=1) & np.all(box_lo <= hi, axis=1))
-        if not len(near):
-            continue
-        an, bn, cn, dn = a[near], b[near], c[near], det[near]
-        p = run[:, None, :]                                     # (k, 1, 2)
-        l1 = ((p[..., 0] - an[:, 0]) * (cn[:, 1] - an[:, 1]) - (cn[:, 0] - an[:, 0]) * (p[..., 1] - an[:, 1])) / dn
-        l2 = ((bn[:, 0] - an[:, 0]) * (p[..., 1] - an[:, 1]) - (p[..., 0] - an[:, 0]) * (bn[:, 1] - an[:, 1])) / dn
-        l0 = 1.0 - l1 - l2
-        inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)      # (k, candidates)
-        has = inside.any(axis=1)
-        j = np.argmax(inside, axis=1)
-        r = np.arange(len(j))
-        t = tri[near[j]]
-        val = l0[r, j] * v[t[:, 0]] + l1[r, j] * v[t[:, 1]] + l2[r, j] * v[t[:, 2]]
-        out[start:start + 16] = np.where(has, val, np.nan)
-    return out
-
-
-def _circle_samples(points, values, radius, center, n_samples, triangles):
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
-        raise ValueError(f"points must have shape (n, 2) or (n, 3), got {pts.shape}")
-    v = _field(values, len(pts), "values")
-    if pts.shape[1] == 3:   # a circle in the xy plane: a curved mesh would be silently projected onto it
-        extent = max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1]))
-        if np.ptp(pts[:, 2]) > 1e-9 * extent:
-            raise ValueError(f"points must be a flat mesh in the xy plane (the reference positions), got z from "
-                             f"{pts[:, 2].min():.6g} to {pts[:, 2].max():.6g}")
-    radius = finite("radius", radius, 0.0, lo_open=True)
-    ns = _count("n_samples", n_samples, 8, 1_000_000)
-    phi = 2 * math.pi * np.arange(ns) / ns
-    cx, cy = finite_vector("center", center, 2)
-    q = np.column_stack([cx + radius * np.cos(phi), cy + radius * np.sin(phi)])
-    if triangles is not None:
-        tri = _mesh(pts, triangles)[1]
-        if not len(tri):
-            raise ValueError("triangles is empty: no mesh to sample the circle on")
-        w = _sample_on_mesh(pts[:, :2], tri, v, q)
-    else:
-        from scipy.interpolate import LinearNDInterpolator
-        from scipy.spatial import QhullError
-
-        if not np.all(np.isfinite(pts)):
-            raise ValueError("points hold NaN or infinity")
-        try:
-            w = LinearNDInterpolator(pts[:, :2], v)(q)
-        except (QhullError, ValueError) as exc:   # fewer than 3 points, or all on a line
-            raise ValueError(f"cannot triangulate the points in the xy plane ({str(exc).splitlines()[0]}); "
-                             "pass the mesh's triangles") from None
-    if not np.all(np.isfinite(w)):
-        raise ValueError(f"the circle of radius {radius} about {center} leaves the mesh")
-    return w
-
-
-def _spectrum(w):
-    ns = len(w)
-    amp = np.abs(np.fft.rfft(w)) / ns
-    amp[1:] *= 2.0
-    if ns % 2 == 0:
-        amp[-1] /= 2.0
-    return amp
-
-
-def azimuthal_spectrum(points, values, radius: float, *, center=(0.0, 0.0), n_samples: int = 512,
-                       triangles=None):
-    """Fourier amplitudes |ŵ_k| (k = 0 .. n_samples/2) of a field sampled on a circle.
-
-    ``points`` are the (reference) positions (n, 2) or (n, 3) of a flat mesh in the xy
-    plane, ``values`` (n,) a vertex field (e.g. the deflection w), sampled by linear
-    interpolation at ``n_samples`` angles on the circle of ``radius`` about ``center``:
-    on the mesh's own ``triangles`` when given, else on a Delaunay triangulation of the
-    points (slower). Amplitudes are in the unit of ``values``:
-    w(φ) = ŵ_0 + Σ_k ŵ_k cos(k φ − φ_k). Raises ValueError when the circle leaves the mesh.
-    """
-    return _spectrum(_circle_samples(points, values, radius, center, n_samples, triangles))
-
-
-def azimuthal_power(points, values, radii, *, triangles=None, skip_outside: bool = False):
-    """|ŵ_k|² (k = 0 .. 256) summed over the circles of the given ``radii`` about the origin.
-
-    One circle can pass where a mode's part of some wavenumber vanishes; the sum over several
-    does not. See :func:`azimuthal_spectrum` (512 samples per circle). A circle that leaves
-    the mesh raises ValueError, or with ``skip_outside`` is left out; None if none is left.
-    """
-    power = None
-    for r in radii:
-        try:
-            amp = azimuthal_spectrum(points, values, r, triangles=triangles)
-        except ValueError:
-            if not skip_outside:
-                raise
-            continue
-        power = amp ** 2 if power is None else power + amp ** 2
-    return power
-
-
-def count_wrinkles(points, values, radius: float, *, center=(0.0, 0.0), n_samples: int = 512,
-                   triangles=None, min_mode: int = 1, rel_tol: float = 1e-3, method: str = "fourier") -> int:
-    """Number of azimuthal wrinkles of a field (the deflection w) on a circle of ``radius``.
-
-    ``method="fourier"``: the dominant azimuthal mode k ≥ ``min_mode`` of w(φ) (w ∝ cos kφ
-    has k wrinkles). ``method="zeros"``: half the number of sign changes of w(φ) − mean.
-    Returns 0 when the non-axisymmetric part is below ``rel_tol`` of the total amplitude
-    on the circle (an axisymmetric or flat state). ``min_mode=2`` ignores a tilt (k = 1).
-    See :func:`azimuthal_spectrum` for the sampling (pass ``triangles`` for speed).
-
-    >>> import numpy as np
-    >>> from femshell.mesh.generators import disk
-    >>> from femshell.analysis import count_wrinkles
-    >>> d = disk(radius=5.0, edge_length=0.25)
-    >>> x, y = d.points[:, 0], d.points[:, 1]
-    >>> count_wrinkles(d.points, np.hypot(x, y) ** 2 * np.cos(5 * np.arctan2(y, x)), 3.0, triangles=d.triangles)
-    5
-    """
-    if method not in ("fourier", "zeros"):
-        raise ValueError(f"method must be 'fourier' or 'zeros', got {method!r}")
-    w = _circle_samples(points, values, radius, center, n_samples, triangles)
-    min_mode = _count("min_mode", min_mode, 1, len(w) // 2)
-    rel_tol = finite("rel_tol", rel_tol, 0.0, 1.0)
-    amp = _spectrum(w)
-    scale = amp[0] + amp[1:].sum()
-    modes = amp[int(min_mode):]
-    if scale == 0 or modes.max() <= rel_tol * scale:
-        return 0
-    if method == "fourier":
-        return int(min_mode + int(np.argmax(modes)))
-    d = w - w.mean()
-    s = np.sign(d)
-    s[s == 0] = 1
-    return int(np.count_nonzero(s != np.roll(s, 1)) // 2)
