@@ -50,8 +50,7 @@ def raise_if_interrupted():
 
     Call it where a step begins. An exception raised in a callback of the garbage collector
     (a finalizer) is printed and dropped, so a SIGTERM that arrived there would otherwise be
-    lost and the run go on to its end (measured: a flaky test, and reproduced with numpy work
-    in a ``weakref.finalize`` callback).
+    lost and the run go on to its end.
     """
     global _interrupted
     if _interrupted:

@@ -3,8 +3,8 @@ r"""Differential geometry of a triangulated surface: areas, normals, fundamental
 Plain functions over arrays: ``points`` (n, 3), ``triangles`` (m, 3). Lengths in the
 units of ``points``; curvatures in 1/length.
 
-The mean curvature used by the chemistry (design.md 1.3) comes from the shell's own
-second fundamental form :math:`b` (see :mod:`femshell.shell.element`), per element
+The mean curvature used by the chemistry (docs/theory.md §5) comes from the shell's own
+second fundamental form :math:`b` (see :mod:`femshell.shell.bending`), per element
 
 .. math:: H = \tfrac12 \operatorname{tr}(a^{-1} b) - k_0,
 

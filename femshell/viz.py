@@ -6,7 +6,7 @@ server); ``VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow`` is set (unless the
 environment already sets it) before pyvista is imported, which skips a failed
 X11 attempt. Every picture is written atomically (:func:`femshell.io.atomic_write`).
 
-Views (design.md section 1.5, the seed paper's figures):
+Views (the seed paper's figures):
 
 * :func:`top_view`: camera on the +z axis looking down -z (at a sphere's north
   pole, where the initial spot sits), parallel projection, smooth shading,
@@ -52,7 +52,7 @@ MAX_MOVIE_FRAMES = 300
 
 def _pyvista():
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    import pyvista as pv
+    import pyvista as pv        # deferred: pyvista/VTK take seconds to import
     pv.OFF_SCREEN = True
     return pv
 
@@ -116,7 +116,7 @@ def _picture_path(path, suffixes=(".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tif
 
 
 def _check_cmap(cmap):
-    import matplotlib
+    import matplotlib           # deferred: matplotlib is slow to import
 
     if isinstance(cmap, str) and cmap not in matplotlib.colormaps:
         raise ValueError(f"unknown colour map {cmap!r}; e.g. viridis, plasma, magma, inferno, cividis, coolwarm "
@@ -318,7 +318,7 @@ def bifurcation_diagram(table, x: str = "parameter", y: str = "amplitude", stabl
     named by ``x`` and ``y``), ``kind`` ("fold"/"LP": triangle, "branch"/"BP": circle,
     anything else: square) and optional ``label``.
     """
-    import matplotlib
+    import matplotlib           # deferred: matplotlib is slow to import
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
@@ -404,7 +404,7 @@ def bifurcation_diagram(table, x: str = "parameter", y: str = "amplitude", stabl
 # ----------------------------------------------------------------------------- movies
 
 def _frame_image(item):
-    from PIL import Image
+    from PIL import Image       # deferred: only the movie writers need it
     if isinstance(item, (str, os.PathLike)):
         with Image.open(item) as im:
             return im.convert("RGB")
@@ -474,7 +474,7 @@ def render_movie(frames: Sequence | Iterable | Callable, path, fps: float = 5.0,
                                    duration=int(round(1000 / fps)), loop=loop, optimize=False, disposal=1)
         return atomic_write(path, write)
     try:
-        import imageio_ffmpeg
+        import imageio_ffmpeg   # deferred: optional, only for MP4
     except ImportError:
         raise RuntimeError("mp4 movies need the imageio-ffmpeg package (pip install imageio-ffmpeg); "
                            "write a .gif instead") from None

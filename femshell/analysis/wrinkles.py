@@ -63,7 +63,7 @@ def _circle_samples(points, values, radius, center, n_samples, triangles):
             raise ValueError("triangles is empty: no mesh to sample the circle on")
         w = _sample_on_mesh(pts[:, :2], tri, v, q)
     else:
-        from scipy.interpolate import LinearNDInterpolator
+        from scipy.interpolate import LinearNDInterpolator   # deferred: scipy.interpolate is slow to import, needed only here
         from scipy.spatial import QhullError
 
         if not np.all(np.isfinite(pts)):

@@ -1,4 +1,4 @@
-"""Meshes: gmsh generators, meshio I/O, topology and checks (design.md section 2)."""
+"""Meshes: gmsh generators, meshio I/O, topology and checks."""
 
 from .surface import SurfaceMesh
 from .topology import MeshError, Topology, build_topology

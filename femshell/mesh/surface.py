@@ -30,7 +30,7 @@ class SurfaceMesh:
     Parameters
     ----------
     points : (n, 3) float array
-        Vertex coordinates (length unit: the cell size, design.md section 3).
+        Vertex coordinates (length unit: the cell size).
     triangles : (m, 3) int array
         Vertex indices of each triangle, counter-clockwise seen from the normal side.
     boundary : dict of str -> (k, 2) int array

@@ -18,6 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 
 class MeshError(ValueError):
@@ -171,9 +173,6 @@ def _boundary_groups(edges, boundary_edges, n_vertices, named):
 
 def _edge_components(seg, n_vertices):
     """Connected-component label of each segment of a set of edges."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     n = len(seg)
     g = coo_matrix((np.ones(n), (seg[:, 0], seg[:, 1])), shape=(n_vertices, n_vertices))
     _, lab = connected_components(g, directed=False)
@@ -182,3 +181,20 @@ def _edge_components(seg, n_vertices):
     _, first, inv = np.unique(comp, return_index=True, return_inverse=True)
     rank = np.argsort(np.argsort(first))
     return rank[inv]
+
+
+#: How many examples a message lists before "...".
+N_EXAMPLES = 5
+
+
+def examples(values, fmt=str, k=N_EXAMPLES) -> str:
+    """'a, b, c, ...' listing the first k items."""
+    values = list(values)
+    text = ", ".join(fmt(v) for v in values[:k])
+    return text + (", ..." if len(values) > k else "")
+
+
+def plural(n: int, word: str, words: str | None = None) -> str:
+    """'1 such triangle', '3 such triangles' ('vertex' / 'vertices' via ``words``)."""
+    return f"{n} such {word if n == 1 else (words or word + 's')}"
+
