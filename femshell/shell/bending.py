@@ -79,9 +79,11 @@ def mid_edge_normals(x, p, theta, kind, direction, sign):
     return jnp.stack(out), nf
 
 
-def curvature_of_q(q0, q1, q2):
-    """b = 2 [[q0 + q1, q0], [q0, q0 + q2]]: the second fundamental form, linear in q."""
-    return 2.0 * jnp.array([[q0 + q1, q0], [q0, q0 + q2]])
+def curvature_of_q(q, start=0):
+    """b = 2 [[q0 + q1, q0], [q0, q0 + q2]]: the second fundamental form, linear in (q0, q1, q2) =
+    q[start:start + 3] (read entry by entry, so that derivatives sum in one fixed order)."""
+    i, j, k = start, start + 1, start + 2
+    return 2.0 * jnp.array([[q[i] + q[j], q[i]], [q[i], q[i] + q[k]]])
 
 
 def fundamental_forms(x, p, theta, kind, direction, sign):
@@ -98,7 +100,7 @@ def fundamental_forms(x, p, theta, kind, direction, sign):
         conormal = jnp.cross(d, nf) / length
         s.append(ne[k] @ conormal)
         h.append(twice_area / length)
-    return a, curvature_of_q(s[0] * h[0], s[1] * h[1], s[2] * h[2])
+    return a, curvature_of_q((s[0] * h[0], s[1] * h[1], s[2] * h[2]))
 
 
 def edge_q(y, k, kind, direction, sign):
@@ -130,7 +132,7 @@ class MidEdgeTangent:
     """The mid-edge formulation as one swappable piece: what the element needs of it.
 
     ``forms(x, p, theta, kind, direction, sign) -> (a, b)``; ``edge_q(y, k, kind, direction, sign)``,
-    the per-edge number b is linear in; ``curvature(q0, q1, q2) -> b``; ``normals`` the mid-edge
+    the per-edge number b is linear in; ``curvature(q, start) -> b``; ``normals`` the mid-edge
     normals (loads that act on rotations use them); ``edge_unknown`` what θ is.
     """
 

@@ -160,7 +160,7 @@ def _batched(fn, chunk=None, chunk_small=None):
 def energy_of_forms(z, abar_inv, bbar, area, hbar, alpha, beta, law=StVenantKirchhoff, formulation=MidEdgeTangent):
     """:func:`element_energy` as a function of z = (a11, a12, a22, q0, q1, q2) (quadratic for SVK)."""
     a = jnp.array([[z[0], z[1]], [z[1], z[2]]])
-    b = formulation.curvature(z[3], z[4], z[5])
+    b = formulation.curvature(z, 3)
     mem, bend = _membrane_and_bending(a, b, abar_inv, bbar, area, hbar, alpha, beta, law)
     return mem + bend
 
