@@ -1,6 +1,6 @@
 """Scenes: a TOML file -> the parts that scene needs and nothing else -> a run directory.
 
-* :mod:`.config`: one dataclass per section (keys, ranges, defaults), the validated :class:`Scene`;
+* :mod:`femshell.scene.config`: one dataclass per section (keys, ranges, defaults), the validated :class:`Scene`;
 * :mod:`.schema`: validation with one-line errors; :mod:`.text`: TOML reading and writing, ``--set``;
 * :mod:`.build`: the mesh, the shell, the time loop, ``--dry-run`` plans;
 * :mod:`.runner`: ``femshell run``: progress, checkpoints, ``--resume``, summary, pictures.

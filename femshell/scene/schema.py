@@ -36,7 +36,7 @@ one :class:`SceneError` listing every problem, one line each, naming the key pat
     scene.toml: [materail] is not a section; did you mean [material]?
 
 Every number is finite, and a non-zero one has a magnitude in ``MAGNITUDE`` = [1e-30, 1e30].
-Each key's type, range and default is a field of its section's class in :mod:`.config`;
+Each key's type, range and default is a field of its section's class in :mod:`femshell.scene.config`;
 reading, writing and ``--set`` overrides of the text are in :mod:`.text`.
 """
 
