@@ -3,7 +3,10 @@
 * :mod:`femshell.scene.config`: one dataclass per section (keys, ranges, defaults), the validated :class:`Scene`;
 * :mod:`.schema`: validation with one-line errors; :mod:`.text`: TOML reading and writing, ``--set``;
 * :mod:`.build`: the mesh, the shell, the time loop, ``--dry-run`` plans;
-* :mod:`.runner`: ``femshell run``: progress, checkpoints, ``--resume``, summary, pictures.
+* :mod:`.runner`: ``femshell run``: the run's contract, ``--resume`` checks, :func:`run_scene`;
+  :mod:`.rundir` (the run directory and its lock), :mod:`.progress`, :mod:`.frames` (fields and
+  pictures), :mod:`.base_runner` (the loop shared by the solver kinds) and one runner per kind:
+  :mod:`.time_runner`, :mod:`.static_runner`, :mod:`.continuation_runner`.
 
 Example
 -------
