@@ -24,7 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .._interrupts import committing, step_scope
+from ..analysis import count_spots, find_spots, same_pattern
 from ..growth import GrowthRestState
+from ..mesh import check_mesh, generators
+from ..mesh.io import read_mesh
 from .config import NEWTON_KEYS
 from .schema import Scene, SceneError, validate
 from .text import apply_overrides, parse_scene, tomllib
@@ -112,14 +116,10 @@ def load_scene(scene, overrides=()) -> Scene:
 
 def make_mesh(scene: Scene):
     """The scene's mesh (gmsh or file); SceneError for generator errors and unknown curve names."""
-    from ..mesh import generators as g
-
     m = asdict(scene.mesh)
     kind = scene.mesh_kind
     try:
         if kind == "file":
-            from ..mesh import check_mesh
-            from ..mesh.io import read_mesh
             mesh = read_mesh(m["file"], merge_vertices=m.get("merge_vertices", False))
             report = check_mesh(mesh)   # a drawn mesh may be degenerate, tangled or misoriented: say so now
             if report.n_components > 1:
@@ -134,7 +134,7 @@ def make_mesh(scene: Scene):
                 kw.pop("structured")
             if kind in ("plate", "strip") and not kw.get("structured"):
                 kw.pop("diagonal", None)
-            mesh = getattr(g, kind)(**kw)
+            mesh = getattr(generators, kind)(**kw)
     except (ValueError, RuntimeError, OSError) as exc:
         raise SceneError(f"{scene.label}: [mesh] {kind}: {exc}") from None
     if kind == "file":
@@ -175,7 +175,7 @@ def _check_pieces_supported(mesh, n_pieces, boundary, name):
 
 
 def boundary_conditions(scene: Scene, mesh) -> list:
-    from ..shell import Clamped, Prescribed, SimplySupported, Symmetry
+    from ..shell import Clamped, Prescribed, SimplySupported, Symmetry      # deferred: jax
 
     out = []
     for bc in scene.boundary:
@@ -193,8 +193,8 @@ def boundary_conditions(scene: Scene, mesh) -> list:
 
 
 def make_loads(scene: Scene, mesh) -> list:
-    from ..shell import (AreaLoad, DeadLoad, DeadPressure, EdgeForce, EdgeMoment, FollowerPressure,
-                         PointForce)
+    # deferred: jax
+    from ..shell import AreaLoad, DeadLoad, DeadPressure, EdgeForce, EdgeMoment, FollowerPressure, PointForce
 
     out = []
     for ld in scene.loads:
@@ -224,7 +224,7 @@ def make_loads(scene: Scene, mesh) -> list:
 
 def count_unknowns(mesh, bcs) -> dict:
     """Free unknowns of the shell (as ShellModel counts them) without building the model."""
-    from ..shell.boundary import rigid_body_pins
+    from ..shell.boundary import rigid_body_pins      # deferred: jax
     from ..shell.element import CLAMPED, FREE, INTERIOR, SYMMETRY
 
     t = mesh.topology
@@ -326,7 +326,7 @@ def shell_parts(scene: Scene, mesh) -> ShellParts:
 
 def coupled_parameters(scene: Scene):
     """MechanochemicalModel, TimeStepping and the initial condition of a time scene."""
-    from ..coupled import InitialSpot, MechanochemicalModel, TimeStepping
+    from ..coupled import InitialSpot, MechanochemicalModel, TimeStepping      # deferred: jax
 
     mat, sh, gr, ch, ini, so = (scene.material, scene.shell, scene.growth, scene.chemistry, scene.initial,
                                 scene.solver)
@@ -389,7 +389,7 @@ def spot_centres(ini) -> np.ndarray:
 
 def initial_concentration(scene: Scene, mesh, params):
     """The c0 given to the time loop: an InitialSpot, a vertex array (several spots) or None."""
-    from ..coupled import gaussian_spot
+    from ..coupled import gaussian_spot      # deferred: jax
 
     ini = scene.initial
     _, _, spot = coupled_parameters(scene)
@@ -407,9 +407,7 @@ def initial_concentration(scene: Scene, mesh, params):
 def loop_observers(log=None):
     """The callbacks of a run's coupled loop: regions counted and compared by :mod:`femshell.analysis`,
     each step's commit held against Ctrl-C/SIGTERM (:mod:`femshell._interrupts`), progress to ``log``."""
-    from .._interrupts import committing, step_scope
-    from ..analysis import count_spots, find_spots, same_pattern
-    from ..coupled import LoopObservers
+    from ..coupled import LoopObservers      # deferred: jax
 
     return LoopObservers(log=log, count_regions=count_spots, measure_pattern=find_spots, same_pattern=same_pattern,
                          commit=committing, step_scope=step_scope)
@@ -418,7 +416,7 @@ def loop_observers(log=None):
 def time_loop(scene: Scene, mesh, state=None, log=None, observers=None):
     """The CoupledLoop of a time scene: a fresh one (initial equilibrium computed) or from ``state``;
     ``observers`` default :func:`loop_observers` (``log``)."""
-    from ..coupled import CoupledLoop
+    from ..coupled import CoupledLoop      # deferred: jax
 
     params, stepping, _ = coupled_parameters(scene)
     bcs = boundary_conditions(scene, mesh)
