@@ -2,7 +2,7 @@ r"""Exchange of end states between neighbouring radii of the disk study.
 
 Each case's end state is carried to the next smaller and the next larger R2 among the cases of its h and
 resolution (:func:`neighbour_pairs`): swept in R2 at ε = 0.5 on its own mesh in steps of ``EXCHANGE_STEP`` · h
-(:func:`~.branches.sweep_radius`: a slowly growing or shrinking disk keeps its n-branch while that is stable),
+(:func:`~femshell.validation.disk.branches.sweep_radius`: a slowly growing or shrinking disk keeps its n-branch while that is stable),
 interpolated onto the neighbour's mesh (:meth:`~.model.Disk.carried`), relaxed there by stable Newton in bounded
 steps (``CARRY_MAX_STEP``) and checked as a case's end state. A case counts the lowest-energy result among its own
 end state and those carried to it (:func:`~.measures.with_carried`): a state the snap at one R2 misses is found
@@ -70,7 +70,7 @@ def carried_to_neighbour(d_from, u_from, d_to, log=None, checkpoint=None, meta=N
     mesh (:meth:`Disk.carried`), relaxed there by stable Newton in steps of at most ``CARRY_MAX_STEP`` · h and
     checked as a case's final state.
 
-    Four relaxations from the snap are a sample of the many stable states past it (:mod:`.branches`, step 3);
+    Four relaxations from the snap are a sample of the many stable states past it (:mod:`femshell.validation.disk.branches`, step 3);
     the neighbours' states, carried over, are more of them. Returns (u on d_to, candidate: from_R2, count, rim,
     energy, result, n_negative, residual, over_folded, largest_turn). With ``checkpoint`` (an .npz path) the
     sweep is saved step by step beside it (``sweep-`` + its name, resumed) and the result in it (read back
