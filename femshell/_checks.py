@@ -71,6 +71,18 @@ def surface(points, triangles) -> tuple[np.ndarray, np.ndarray]:
     return pts, tri
 
 
+def flat_or_spatial_surface(points, triangles) -> tuple[np.ndarray, np.ndarray]:
+    """Like :func:`surface`, but (n, 2) points are taken too, as the plane z = 0."""
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
+    if pts.shape[1] == 2:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    tri = triangle_array(triangles)
+    vertex_indices(tri, len(pts))
+    return pts, tri
+
+
 def triangle_array(triangles, what: str = "triangles") -> np.ndarray:
     """``triangles`` as an (m, 3) integer array (an empty one of any dtype is taken), or a ValueError
     naming ``what``. The indices are checked against the vertices by :func:`vertex_indices`."""

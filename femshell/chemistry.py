@@ -39,7 +39,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
-from ._checks import finite, real_array, triangle_array, vertex_indices
+from ._checks import finite, flat_or_spatial_surface, real_array, triangle_array, vertex_indices
 
 __all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion",
            "W", "HS"]
@@ -47,17 +47,6 @@ __all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature
 #: the paper's source: production rate w and saturation curvature Hs, the defaults here and of
 #: MechanochemicalModel (femshell.coupled)
 W, HS = 15.0, 0.05
-
-
-def _check_mesh(points, triangles):
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
-        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-    if pts.shape[1] == 2:
-        pts = np.column_stack([pts, np.zeros(len(pts))])
-    tri = triangle_array(triangles)
-    vertex_indices(tri, len(pts))
-    return pts, tri
 
 
 def _edges_and_areas(pts, tri):
@@ -128,7 +117,7 @@ class P1Assembler:
         is minus the sum of the off-diagonals of its row, so constants are in the
         kernel to round-off. cot θ_k = −(e_{k+1} · e_{k+2}) / (2 A).
         """
-        pts, tri = _check_mesh(points, self.triangles)
+        pts, tri = flat_or_spatial_surface(points, self.triangles)
         if len(pts) != self.n_vertices:
             raise ValueError(f"expected {self.n_vertices} points, got {len(pts)}")
         e, twice_area = _edges_and_areas(pts, tri)
@@ -164,7 +153,7 @@ class P1Assembler:
 
     def mass_lumped(self, points):
         """Lumped mass: vertex area = ⅓ of the adjacent triangle areas (length²), shape (n,)."""
-        pts, tri = _check_mesh(points, self.triangles)
+        pts, tri = flat_or_spatial_surface(points, self.triangles)
         if len(pts) != self.n_vertices:
             raise ValueError(f"expected {self.n_vertices} points, got {len(pts)}")
         e, twice_area = _edges_and_areas(pts, tri)
@@ -176,7 +165,7 @@ def surface_mass_lumped(points, triangles):
 
     Sums to the area of the triangulated surface.
     """
-    pts, tri = _check_mesh(points, triangles)
+    pts, tri = flat_or_spatial_surface(points, triangles)
     _, twice_area = _edges_and_areas(pts, tri)
     return np.bincount(tri.ravel(), weights=np.repeat(twice_area / 6.0, 3), minlength=len(pts))
 
@@ -188,7 +177,7 @@ def surface_stiffness(points, triangles):
     positive semi-definite, K 1 = 0. Dimensionless. For repeated assembly on one
     triangulation use :class:`P1Assembler` (the pattern is cached there).
     """
-    pts, tri = _check_mesh(points, triangles)
+    pts, tri = flat_or_spatial_surface(points, triangles)
     return P1Assembler(tri, len(pts)).stiffness(pts)
 
 

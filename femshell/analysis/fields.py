@@ -4,18 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import integer, triangle_array, vertex_indices
+from .._checks import flat_or_spatial_surface, integer
 from ..geometry import triangle_areas
 
 
 def _mesh(points, triangles):
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
-        raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-    if pts.shape[1] == 2:
-        pts = np.column_stack([pts, np.zeros(len(pts))])
-    tri = triangle_array(triangles)
-    vertex_indices(tri, len(pts))
+    pts, tri = flat_or_spatial_surface(points, triangles)
     if not np.all(np.isfinite(pts)):
         raise ValueError(f"points hold NaN or infinity at {int((~np.isfinite(pts)).any(axis=1).sum())} vertices")
     return pts, tri.astype(np.int64)

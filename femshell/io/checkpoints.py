@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import _fsync_dir, _nonfinite_name, _raise_for_target, _tmp_name, to_json_safe
+from .files import _fsync, _nonfinite_name, _raise_for_target, _tmp_name, to_json_safe
 
 CHECKPOINT_FORMAT = "femshell-checkpoint"
 CHECKPOINT_VERSION = 1
@@ -125,7 +125,7 @@ def save_checkpoint(path, state: dict, meta: dict | None = None) -> Path:
             tmp.unlink()
         _raise_for_target(exc, tmp, path)
         raise
-    _fsync_dir(path.parent)
+    _fsync(path.parent)
     return path
 
 

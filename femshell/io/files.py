@@ -53,21 +53,9 @@ def finite_or_none(v):
     return v
 
 
-def _fsync_dir(directory: Path) -> None:
-    """Make a rename durable (best effort; not every file system allows opening a directory)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def _fsync_file(path: Path) -> None:
+def _fsync(path: Path) -> None:
+    """Flush a file's data, or make a rename in a directory durable (best effort: not every file
+    system allows opening a directory)."""
     try:
         fd = os.open(path, os.O_RDONLY)
     except OSError:
@@ -112,14 +100,14 @@ def atomic_path(path) -> Iterator[Path]:
         yield tmp
         if not tmp.exists():
             raise OSError(f"{path}: the writer did not create the temporary file {tmp.name}")
-        _fsync_file(tmp)
+        _fsync(tmp)
         os.replace(tmp, path)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
         _raise_for_target(exc, tmp, path)
         raise
-    _fsync_dir(path.parent)
+    _fsync(path.parent)
 
 
 def atomic_write(path, writer: Callable[[Path], Any]) -> Path:
