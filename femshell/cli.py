@@ -79,7 +79,10 @@ def _run_parser(sub):
                "ends with the overrides, [--set ...]. `femshell scenes NAME` prints an embedded scene to start from.\n\n"
                "An --out that holds a run is never overwritten silently: give --resume (continue it) or\n"
                "--overwrite (replace femshell's files there; the earlier run is put back if the new one\n"
-               "cannot start). Ctrl-C stops after a checkpoint.\n"
+               "cannot start). Ctrl-C stops after a checkpoint.\n\n"
+               "By default the factorisations and element kernels use every core, and a resumed run\n"
+               "continues the uninterrupted one to round-off; --reproducible (give it to the run and to\n"
+               "every --resume) makes resumes repeat the uninterrupted run bit for bit, on one core.\n"
                "exit codes: 0 done (or paused by --max-steps), 1 a step failed, 2 bad input, 130 interrupted")
     r.add_argument("scene", nargs="?", help="a .toml file or the name of an embedded scene (see `femshell scenes`); "
                                             "may be left out with --resume (the scene in --out is used)")
@@ -91,6 +94,9 @@ def _run_parser(sub):
                    help="override a scene key, e.g. --set mesh.n_vertices=500 (repeatable)")
     r.add_argument("--max-steps", type=int, metavar="N",
                    help="stop after N steps in this invocation (checkpointed; continue with --resume)")
+    r.add_argument("--reproducible", action="store_true",
+                   help="bit-for-bit repeatable results, a resume included: MKL's strict reproducibility mode "
+                        "(sequential layer) and one thread for MKL and the element kernels (slower on large meshes)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     r.add_argument("-v", "--verbose", action="store_true", help="also print step cuts and solver details")
 
@@ -250,6 +256,8 @@ def _cmd_validate(args):
 def _cmd_run(args):
     from .scene import run_scene      # deferred: the solvers (see _cmd_mesh)
 
+    if args.reproducible:             # before the first factorisation loads MKL
+        configure(blas_threads=None, jax_cache_dir=None, reproducible=True)
     return run_scene(args.scene, out=args.out, resume=args.resume, dry_run=args.dry_run,
                      overwrite=args.overwrite, overrides=args.overrides, max_steps=args.max_steps,
                      quiet=args.quiet, verbose=args.verbose)

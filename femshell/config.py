@@ -8,6 +8,10 @@ it once at its start, before numpy is imported, for the same settings::
     femshell.configure()                 # BLAS on one thread, JAX's compiled code kept on disk
     import numpy as np
 
+By default the element kernels and MKL PARDISO use every CPU the process may use (a resumed
+run then continues the uninterrupted one to round-off); ``configure(reproducible=True)``
+(``femshell run --reproducible``) trades that speed for bit-for-bit repeatable runs.
+
 The element kernels compute in float64 whether or not this is called (they switch on jax's
 float64 mode, thread-locally, around each call: :func:`femshell.shell.element.float64`).
 """
@@ -20,6 +24,11 @@ from pathlib import Path
 
 #: where a container's CPU limit is read (cgroup v2, then v1)
 CGROUP_CPU_FILES = (("/sys/fs/cgroup/cpu.max",), ("/sys/fs/cgroup/cpu/cpu.cfs_quota_us", "/sys/fs/cgroup/cpu/cpu.cfs_period_us"))
+
+#: the environment of the reproducible mode (:func:`configure`): MKL's sequential layer in its strict
+#: conditional-numerical-reproducibility mode, one thread for MKL and the element kernels
+REPRODUCIBLE_ENV = {"MKL_THREADING_LAYER": "SEQUENTIAL", "MKL_CBWR": "AUTO,STRICT", "MKL_NUM_THREADS": "1",
+                    "FEMSHELL_THREADS": "1"}
 
 #: JAX keeps compiled code on disk when compiling it took at least this long (seconds)
 JAX_CACHE_MIN_COMPILE_SECONDS = 0.5
@@ -36,7 +45,7 @@ def default_jax_cache_dir() -> Path:
 
 
 def configure(*, blas_threads: int | None = 1, threads: int | None = None,
-              jax_cache_dir: str | os.PathLike | None | bool = True) -> dict:
+              jax_cache_dir: str | os.PathLike | None | bool = True, reproducible: bool = False) -> dict:
     """Apply femshell's process settings; returns what was set, ``{name: value}``.
 
     blas_threads : threads of numpy's own BLAS (OpenBLAS), set as ``OPENBLAS_NUM_THREADS``
@@ -49,6 +58,12 @@ def configure(*, blas_threads: int | None = 1, threads: int | None = None,
     jax_cache_dir : where JAX keeps compiled element kernels between runs (compiling the Hessian
         takes seconds). True: :func:`default_jax_cache_dir`; a path: there; False or None: no
         cache. A cache directory already configured in JAX is kept.
+    reproducible : bit-for-bit repeatable results, from one process to the next (a resumed run
+        repeats the uninterrupted one exactly): MKL's sequential layer in its strict conditional
+        numerical reproducibility mode (``MKL_THREADING_LAYER=SEQUENTIAL``,
+        ``MKL_CBWR=AUTO,STRICT``) and one thread for MKL and the element kernels. It must be chosen
+        before MKL is loaded (before the first factorisation): a ValueError otherwise. Without
+        it, a large factorisation runs on every core and its last bits may differ between processes.
 
     >>> import os; old = dict(os.environ)
     >>> configure(blas_threads=None, threads=2, jax_cache_dir=False)
@@ -58,7 +73,13 @@ def configure(*, blas_threads: int | None = 1, threads: int | None = None,
     for name, value in (("blas_threads", blas_threads), ("threads", threads)):
         if value is not None:
             _check_count(name, value)
+    if reproducible not in (True, False):
+        raise ValueError(f"reproducible must be True or False, got {reproducible!r}")
+    if reproducible and threads not in (None, 1):
+        raise ValueError(f"reproducible runs use one thread; got threads={threads}")
     done = {}
+    if reproducible:
+        done.update(_reproducible())
     if blas_threads is not None:
         done["OPENBLAS_NUM_THREADS"] = os.environ.setdefault("OPENBLAS_NUM_THREADS", str(blas_threads))
     if threads is not None:
@@ -68,6 +89,17 @@ def configure(*, blas_threads: int | None = 1, threads: int | None = None,
         path = default_jax_cache_dir() if jax_cache_dir is True else Path(jax_cache_dir).expanduser()
         done.update(_jax_cache(str(path)))
     return done
+
+
+def _reproducible() -> dict:
+    """The environment of the reproducible mode (see :func:`configure`); refused once MKL is loaded otherwise."""
+    pardiso = sys.modules.get("femshell.solvers.pardiso")    # not imported here: MKL is not loaded without it
+    if pardiso is not None and not pardiso.mkl_reproducible_or_unloaded():
+        raise ValueError("the reproducible mode must be chosen before the first factorisation (MKL is already "
+                         "loaded in its threaded mode in this process): call femshell.configure(reproducible=True) "
+                         "at the start of the process")
+    os.environ.update(REPRODUCIBLE_ENV)
+    return dict(REPRODUCIBLE_ENV)
 
 
 def _check_count(name, value):

@@ -6,8 +6,10 @@ import pytest
 
 import femshell
 
-# as the CLI does: numpy's BLAS on one thread, JAX's compiled kernels kept between test runs
-femshell.configure()
+# as the CLI does: numpy's BLAS on one thread, JAX's compiled kernels kept between test runs; in the
+# reproducible mode (as `femshell run --reproducible`): the tests compare resumed runs bit for bit, and the
+# xdist workers of a 2-core CI should not each start threads on both cores. Subprocesses inherit it.
+femshell.configure(reproducible=True)
 
 
 @pytest.fixture

@@ -211,17 +211,46 @@ def _variable_after_import(module, name, env_changes, then=""):
     return out.stdout.strip()
 
 
-@pytest.mark.parametrize("layer, cbwr", [(None, "AUTO,STRICT"), ("SEQUENTIAL", "AUTO,STRICT"), ("GNU", None)])
+@pytest.mark.parametrize("layer, cbwr", [(None, None), ("SEQUENTIAL", "AUTO,STRICT"), ("GNU", None)])
 def test_strict_reproducibility_only_on_the_sequential_layer(layer, cbwr):
     # MKL's strict reproducibility mode serves bit-for-bit resumes, which only the sequential
-    # layer gives; on a threaded one it would only slow PARDISO down (solves 2.5x at 25k vertices).
+    # layer gives (femshell.configure(reproducible=True) chooses it); on a threaded one, the default,
+    # it would only slow PARDISO down (solves 2.5x at 25k vertices).
     # It is chosen when MKL is first loaded, not when the module is imported.
-    env = {"MKL_CBWR": None, "MKL_THREADING_LAYER": layer}
+    env = {"MKL_CBWR": None, "MKL_THREADING_LAYER": layer, "MKL_NUM_THREADS": None, "FEMSHELL_THREADS": None}
     assert _variable_after_import("femshell.solvers.linear", "MKL_CBWR", env) == "None"
     assert _variable_after_import("femshell.solvers.linear", "MKL_THREADING_LAYER", env) == str(layer)
     got = _variable_after_import("femshell.solvers.linear", "MKL_CBWR", env,
                                  then="femshell.solvers.linear.available_backends()")
     assert got == str(cbwr)
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pardiso unavailable")
+def test_the_default_mkl_layer_is_threaded_on_every_cpu_and_the_reproducible_mode_is_sequential():
+    import os
+    import subprocess
+    import sys
+
+    env = {"MKL_CBWR": None, "MKL_THREADING_LAYER": None, "MKL_NUM_THREADS": None, "FEMSHELL_THREADS": None,
+           "OMP_NUM_THREADS": None}
+    then = ("femshell.solvers.linear.available_backends(); from femshell.solvers.pardiso import _mkl_threads; "
+            "from femshell.config import element_threads; "
+            "print(os.environ['MKL_THREADING_LAYER'], _mkl_threads(), element_threads())")
+    threaded = _variable_after_import("femshell.solvers.linear", "MKL_CBWR", env, then=then).split()
+    if threaded[0] != "GNU":
+        pytest.skip("MKL's GNU threading layer (or libgomp) is not installed")
+    assert threaded[1] == threaded[2]                    # MKL's threads: as many as the kernels use
+    assert threaded[-1] == "None"                        # no strict mode on threads
+    single = _variable_after_import("femshell.solvers.linear", "MKL_CBWR", env,
+                                    then="import femshell; femshell.configure(reproducible=True); " + then).split()
+    assert single == ["SEQUENTIAL", "1", "1", "AUTO,STRICT"]
+    # once MKL is loaded threaded, the reproducible mode is refused, not silently half-applied
+    late = ("femshell.solvers.linear.available_backends(); import femshell\n"
+            "try:\n    femshell.configure(reproducible=True)\nexcept ValueError as e:\n    print('refused', e)")
+    code = f"import os, femshell.solvers.linear\n{late}"
+    out = subprocess.run([sys.executable, "-c", code], env={k: v for k, v in os.environ.items() if k not in env},
+                         capture_output=True, text=True, timeout=120)
+    assert "refused the reproducible mode must be chosen before the first factorisation" in out.stdout, out.stderr
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import copy
 import ctypes
+import ctypes.util
+import glob
 import os
+import sys
 import time
 import weakref
 
@@ -18,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._interrupts import run_handles_signals
+from ..config import REPRODUCIBLE_ENV, element_threads
 from .sparse_matrix import _SINGULAR_HINT, LinearSolverError
 
 #: PARDISO's symmetric-indefinite mode replaces pivots smaller than 10^-13 ‖K‖ by
@@ -26,28 +30,44 @@ from .sparse_matrix import _SINGULAR_HINT, LinearSolverError
 #: iterative refinement did not repair (measured), so femshell sets 13 (iparm(10)).
 PARDISO_PERTURBATION_EXPONENT = 13
 #: PARDISO runs single-threaded below this many stored (upper-triangle) non-zeros and
-#: with all of MKL's threads above (only with a threaded MKL layer: femshell selects the
-#: sequential one unless MKL_THREADING_LAYER is set, see _mkl_environment). Below it, idle
-#: OpenMP threads spin and compete on a shared machine; above it (a 25k-vertex shell
-#: Hessian, 4.2M non-zeros), two threads refactorise about twice as fast as one.
+#: with all of MKL's threads above (``MKL_NUM_THREADS``: the CPUs this process may use by
+#: default, one in the reproducible mode, see _mkl_environment). Below it, idle OpenMP
+#: threads spin and compete on a shared machine; above it (a 25k-vertex shell Hessian, 4.2M
+#: non-zeros), two threads refactorise about twice as fast as one.
 PARALLEL_MIN_NNZ = 2_000_000
 
-
-_PARDISO_STATE = {"checked": False, "ok": False, "why": "", "template": None}
+_PARDISO_STATE = {"checked": False, "ok": False, "why": "", "template": None, "layer": None}
 
 
 def _mkl_environment():
-    """MKL's threading layer for bit-for-bit repeatable runs, chosen just before MKL is first loaded.
+    """MKL's threading layer and thread count, chosen just before MKL is first loaded.
 
-    Unless the environment names one, the sequential layer with strict conditional numerical
-    reproducibility (``MKL_CBWR=AUTO,STRICT``): a resumed run must equal the uninterrupted one,
-    and the same PARDISO factorisation otherwise differs in the last bits between processes.
-    ``MKL_THREADING_LAYER=GNU`` factorises large Hessians on all cores and gives up bit-for-bit
-    resumes (strict reproducibility is then left off: it only slows PARDISO down).
+    Unless the environment names a layer: MKL's GNU OpenMP layer (where installed) on
+    ``MKL_NUM_THREADS`` threads, by default as many as the element kernels use
+    (:func:`femshell.config.element_threads`: the CPUs this process may use), so large
+    factorisations use every core. The same factorisation then differs in its last bits from
+    one process to the next, so a resumed run continues the uninterrupted one to round-off.
+    The sequential layer (``MKL_THREADING_LAYER=SEQUENTIAL``, which the reproducible mode of
+    :func:`femshell.configure` sets, and the fall-back without the GNU layer) comes with strict
+    conditional numerical reproducibility (``MKL_CBWR=AUTO,STRICT``): bit-for-bit the same
+    results in every process, so a resume repeats the uninterrupted run exactly. (Strict mode
+    is left off with threads: it only slows PARDISO down there.)
     """
-    os.environ.setdefault("MKL_THREADING_LAYER", "SEQUENTIAL")
+    if "MKL_THREADING_LAYER" not in os.environ:
+        gnu = glob.glob(os.path.join(sys.prefix, "lib", "libmkl_gnu_thread.so*"))
+        os.environ["MKL_THREADING_LAYER"] = "GNU" if gnu and ctypes.util.find_library("gomp") else "SEQUENTIAL"
     if os.environ["MKL_THREADING_LAYER"].strip().upper() == "SEQUENTIAL":
-        os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
+        os.environ.setdefault("MKL_CBWR", REPRODUCIBLE_ENV["MKL_CBWR"])
+    else:
+        os.environ.setdefault("MKL_NUM_THREADS", str(element_threads()))
+    _PARDISO_STATE["layer"] = os.environ["MKL_THREADING_LAYER"].strip().upper()
+
+
+def mkl_reproducible_or_unloaded() -> bool:
+    """Whether MKL is not loaded yet in this process, or was loaded in the reproducible mode."""
+    st = _PARDISO_STATE
+    return not st["checked"] or (st["layer"] == "SEQUENTIAL"
+                                 and os.environ.get("MKL_CBWR", "").replace(" ", "").upper() == REPRODUCIBLE_ENV["MKL_CBWR"])
 
 
 def _pardiso_available() -> bool:
