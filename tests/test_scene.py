@@ -488,6 +488,22 @@ def test_a_time_scene_passes_its_source_rule_to_the_loop():
         load_scene("default", ["solver.source_rule=midpoint"])
 
 
+def test_a_time_scene_passes_its_step_control_to_the_loop():
+    from femshell.coupled import STEP_CONTROLS
+    from femshell.scene.build import coupled_parameters
+    from femshell.scene.schema import SOLVER_KEYS
+
+    assert SOLVER_KEYS["time"]["step_control"].choices == STEP_CONTROLS
+    assert coupled_parameters(load_scene("default"))[1].step_control == "stretch"
+    stepping = coupled_parameters(load_scene("default", ["solver.step_control=error", "solver.error_tol=0.02",
+                                                         "solver.error_ds_max=0.3"]))[1]
+    assert (stepping.step_control, stepping.error_tol, stepping.error_ds_max) == ("error", 0.02, 0.3)
+    with pytest.raises(SceneError, match='step_control = "time" is not one of "stretch", "error"'):
+        load_scene("default", ["solver.step_control=time"])
+    with pytest.raises(SceneError, match="error_tol"):
+        load_scene("default", ["solver.error_tol=0"])
+
+
 def test_sections_are_typed_and_the_physical_defaults_are_the_models(tmp_path, monkeypatch):
     import femshell.coupled as coupled
     from femshell.scene.config import ChemistryConfig, InitialConfig, TimeSolver

@@ -4,7 +4,7 @@ control, the staggered loop and what it reports.
 * :mod:`femshell.coupled.parameters`: :class:`MechanochemicalModel` (the paper's defaults, once);
 * :mod:`femshell.coupled.initial`: :func:`gaussian_spot`, :class:`InitialSpot`;
 * :mod:`femshell.coupled.stepping`: :class:`TimeStepping`, :func:`feedback_gain`,
-  :func:`feedback_step_limit`, :func:`stable_extrapolation`;
+  :func:`feedback_step_limit`, :func:`stable_extrapolation`, :func:`held_source_error`, :func:`error_step_factor`;
 * :mod:`femshell.coupled.records`: :class:`StepRecord`, :class:`RunResult`, :class:`CoupledError`;
 * :mod:`femshell.coupled.observers`: :class:`LoopObservers`, the caller's callbacks;
 * :mod:`femshell.coupled.equilibrium`: the stable equilibrium of the grown shell (Newton, snaps, ramp);
@@ -19,8 +19,10 @@ from .observers import LoopObservers
 from .parameters import MechanochemicalModel
 from .records import CoupledError, RunResult, StepRecord
 from .state import STATE_VERSION
-from .stepping import SOURCE_RULES, TimeStepping, feedback_gain, feedback_step_limit, stable_extrapolation
+from .stepping import (SOURCE_RULES, STEP_CONTROLS, TimeStepping, error_step_factor, feedback_gain, feedback_step_limit,
+                       held_source_error, stable_extrapolation)
 
 __all__ = ["MechanochemicalModel", "GrowthRestState", "InitialSpot", "gaussian_spot", "TimeStepping",
            "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "LoopObservers", "REST_CURVATURES",
-           "feedback_gain", "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES", "STATE_VERSION"]
+           "feedback_gain", "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES", "STATE_VERSION",
+           "STEP_CONTROLS", "held_source_error", "error_step_factor"]

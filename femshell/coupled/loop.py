@@ -5,13 +5,19 @@ grown by s(c):
 
 1. chemistry on the current surface x(u): c⁺ = step(c, dt, P(H(u))) (or P extrapolated to the
    step's midpoint, ``TimeStepping.source_rule``), :class:`~femshell.chemistry.ReactionDiffusion`;
-2. Δs = max over elements |s(c⁺) − s(c)|; Δs > ``ds_max`` cuts the step (before any mechanics);
+2. Δs = max over elements |s(c⁺) − s(c)|; Δs > ``ds_max`` (``error_ds_max`` under error control)
+   cuts the step (before any mechanics);
 3. growth: the rest state ā = s² ā0, b̄ = s² b̄0, h̄(s) of s(c⁺)
    (:class:`~femshell.growth.GrowthRestState`);
 4. mechanics: the stable equilibrium from u or its secant prediction
    (:class:`~femshell.coupled.equilibrium.Equilibria`); a Newton failure cuts dt, a fold snaps;
-5. accept: t += dt, (c, u) ← (c⁺, u⁺), H of the new shape; dt_next = dt · min(grow,
-   safety · ds_max/Δs), bounded by the staggering's stability (:mod:`femshell.coupled.stepping`).
+5. the step's local error, the stretch's change from the source's change over it
+   (:func:`~femshell.coupled.stepping.held_source_error`); above ``error_tol`` it is cut
+   (``TimeStepping.step_control = "error"`` only);
+6. accept: t += dt, (c, u) ← (c⁺, u⁺), H of the new shape; dt_next = dt · min(grow,
+   safety · ds_max/Δs) (``step_control = "stretch"``) or from the error (a PI controller,
+   :func:`~femshell.coupled.stepping.error_step_factor`), bounded by the staggering's
+   stability (:mod:`femshell.coupled.stepping`).
 
 H = ½ tr(a⁻¹ b) − k_ref per element, averaged to the vertices (theory §2.7). After ``max_cuts``
 cuts (or dt < ``dt_min``) a :class:`~femshell.coupled.records.CoupledError` says why, and the
@@ -52,7 +58,8 @@ from .observers import LoopObservers
 from .parameters import MechanochemicalModel
 from .records import CoupledError, RunResult, StepRecord
 from .state import Checkpointing
-from .stepping import TimeStepping, feedback_gain, feedback_step_limit, stable_extrapolation
+from .stepping import (TimeStepping, error_step_factor, feedback_gain, feedback_step_limit, held_source_error,
+                       stable_extrapolation)
 
 __all__ = ["CoupledLoop"]
 
@@ -69,6 +76,9 @@ class _Attempt:
     s: np.ndarray | None = None
     result: object = None
     snapped: bool = False
+    held: np.ndarray | None = None
+    curvature: tuple | None = None
+    error: float = float("nan")
 
 
 class CoupledLoop(Equilibria, Checkpointing):
@@ -159,6 +169,8 @@ class CoupledLoop(Equilibria, Checkpointing):
         self._last_rates = (float("nan"), float("nan"))
         self._last_gain = float("nan")
         self._last_stable = None
+        self._last_error = float("nan")     # the last accepted step's stretch error (StepRecord.step_error)
+        self._error_ratio = None            # ... over error_tol, for the PI controller (step_control = "error")
         self.s = self.growth.stretch(self.c)
         if equilibrate:
             self._equilibrate_initial()
@@ -207,8 +219,9 @@ class CoupledLoop(Equilibria, Checkpointing):
                 "Kirchhoff ellipticity limit, where triangles can collapse: the neo-Hookean membrane "
                 "(scene: material.law = \"neo-hookean\"; API: membrane_law) stays elliptic")
 
-    def _update_curvature(self):
-        self.H, self.H_vertex = self.growth.mean_curvature(self.u)
+    def _update_curvature(self, curvature=None):
+        """H, energy and the diagnostics of the current state (``curvature``: its (H, H_vertex) if known)."""
+        self.H, self.H_vertex = self.growth.mean_curvature(self.u) if curvature is None else curvature
         self.energy = float(self.shell.strain_energy(self.u))
         self.non_elliptic = len(self.shell.non_elliptic_elements(self.u))
         self.over_folded = len(self.shell.over_folded_edges(self.u))
@@ -299,8 +312,10 @@ class CoupledLoop(Equilibria, Checkpointing):
                                        f"(last dt = {h:.3g}: {attempt.reason}); the last accepted state is kept"
                                        + self._non_elliptic_hint())
                 factor = 0.5
-                if math.isfinite(attempt.ds) and attempt.ds > st.ds_max:
-                    factor = min(0.5, max(0.1, st.safety * st.ds_max / attempt.ds))
+                if math.isfinite(attempt.ds) and attempt.ds > st.stretch_limit:
+                    factor = min(0.5, max(0.1, st.safety * st.stretch_limit / attempt.ds))
+                elif attempt.error > st.error_tol:
+                    factor = min(0.5, error_step_factor(attempt.error / st.error_tol, None, st.safety, 1.0))
                 dt = h * factor
                 self._say(f"  step {self.step + 1} t = {self.t:.6g}: cut to dt = {dt:.3g} ({attempt.reason})")
         except BaseException:
@@ -331,8 +346,9 @@ class CoupledLoop(Equilibria, Checkpointing):
         (``snap_tried``): where it does not settle, the cuts that follow are plain.
         """
         st = self.stepping
+        held = self._held_source(source, h)
         try:
-            c_new = self.chemistry.step(self.c, h, source=self._held_source(source, h), points=points)
+            c_new = self.chemistry.step(self.c, h, source=held, points=points)
         except (ValueError, FloatingPointError, ArithmeticError, LinearSolverError) as exc:
             raise CoupledError(f"step {self.step + 1} at t = {self.t:.6g}: the chemistry step failed: "
                                f"{exc}") from exc
@@ -340,8 +356,9 @@ class CoupledLoop(Equilibria, Checkpointing):
             return _Attempt(False, "non-finite concentration", float("inf"), snap_tried)
         s_new = self.growth.stretch(c_new)
         ds = float(np.max(np.abs(s_new - self.s))) if len(s_new) else 0.0
-        if not ds <= st.ds_max * (1 + 1e-12):
-            return _Attempt(False, f"max |Δs| = {ds:.3g} > ds_max = {st.ds_max:.3g}", ds, snap_tried)
+        if not ds <= st.stretch_limit * (1 + 1e-12):
+            name = "ds_max" if st.step_control == "stretch" else "error_ds_max"
+            return _Attempt(False, f"max |Δs| = {ds:.3g} > {name} = {st.stretch_limit:.3g}", ds, snap_tried)
         self.growth.apply(s_new)
         start = self.u
         if st.predictor and self._u_prev is not None and self._h_prev > 0:
@@ -357,10 +374,23 @@ class CoupledLoop(Equilibria, Checkpointing):
             if not snapped:
                 reason = f"Newton failed: {exc}"
         reason = reason or rejected(res) or ""
+        curvature, error = None, float("nan")
+        if not reason and not snapped and st.step_control == "error":   # a snap is no time error: dt cannot avoid it
+            curvature = self.growth.mean_curvature(res.u)
+            error = self._stretch_error(c_new, s_new, held, source, curvature[1], h)
+            if not error <= st.error_tol:
+                reason = f"local error of the stretch {error:.3g} > error_tol = {st.error_tol:.3g}"
         if reason:
             self.growth.apply(self.s)           # back to the accepted rest state
-            return _Attempt(False, reason, ds, snap_tried)
-        return _Attempt(True, "", ds, snap_tried, c_new, s_new, res, snapped)
+            return _Attempt(False, reason, ds, snap_tried, error=error)
+        return _Attempt(True, "", ds, snap_tried, c_new, s_new, res, snapped, held, curvature, error)
+
+    def _stretch_error(self, c_new, s_new, held, source, H_vertex_new, h: float) -> float:
+        """The step's local error in the stretch: max over elements |s(c⁺ + e_c) − s(c⁺)|, e_c the
+        change of c that the source's change over the step would have made (:func:`held_source_error`)."""
+        e_c = held_source_error(held, source, self.params.source(H_vertex_new), h, self.params.beta)
+        s_2 = self.growth.stretch(np.maximum(c_new + e_c, 0.0))
+        return float(np.max(np.abs(s_2 - s_new))) if len(s_new) else 0.0
 
     def _held_source(self, source, h: float):
         """The source the chemistry holds over a step of length h from the current state.
@@ -396,7 +426,12 @@ class CoupledLoop(Equilibria, Checkpointing):
         self._last_stable = res.stable
         self._last_ds = ds
         was_elliptic, was_resolved = self.non_elliptic == 0, self.over_folded == 0
-        self._update_curvature()
+        if attempt.curvature is None:
+            self._update_curvature()
+        else:                                   # measured for the error control: not twice
+            self._update_curvature(attempt.curvature)
+        self._last_error = (float("nan") if snapped else attempt.error if attempt.curvature is not None
+                            else self._stretch_error(c_new, s_new, attempt.held, source, self.H_vertex, h))
         if was_elliptic:
             self._say_non_elliptic()
         if was_resolved:
@@ -432,11 +467,18 @@ class CoupledLoop(Equilibria, Checkpointing):
     def _next_dt(self, h: float, ds: float, cuts: int, c_old, source_old) -> float:
         """dt of the next step after an accepted one of length h that changed the stretch by ds.
 
-        Grows while Δs stays small, never beyond a step that had to be cut, and stays within
-        the stability limit of the staggering (module docstring).
+        Grows while Δs (``step_control = "stretch"``) or the local error (``"error"``, which keeps
+        Δs within ``error_ds_max``) stays small, never beyond a step that had to be cut, and stays
+        within the stability limit of the staggering (module docstring).
         """
         st, p = self.stepping, self.params
-        grow = st.grow if ds <= 0 else min(st.grow, st.safety * st.ds_max / ds)
+        limit = st.stretch_limit
+        grow = st.grow if ds <= 0 else min(st.grow, st.safety * limit / ds)
+        if st.step_control == "error":
+            ratio = self._last_error / st.error_tol
+            if math.isfinite(ratio):
+                grow = min(grow, error_step_factor(ratio, self._error_ratio, st.safety, st.grow))
+            self._error_ratio = ratio if math.isfinite(ratio) else None
         nxt = h * max(grow, 0.1)
         if cuts:
             nxt = min(nxt, h)
@@ -466,7 +508,8 @@ class CoupledLoop(Equilibria, Checkpointing):
                           n_spots=int(n_spots), rate_c=float(self._last_rates[0]),
                           rate_x=float(self._last_rates[1]), stable=self._last_stable, wall_s=float(wall_s),
                           snapped=bool(snapped), feedback_gain=float(self._last_gain),
-                          non_elliptic=int(self.non_elliptic), over_folded=int(self.over_folded))
+                          non_elliptic=int(self.non_elliptic), over_folded=int(self.over_folded),
+                          step_error=float(self._last_error))
 
     # ---- loops --------------------------------------------------------------------------------
     def iterate(self, max_steps: int | None = None):

@@ -29,7 +29,9 @@ class StepRecord:
     non_elliptic : elements whose membrane law is not elliptic (St Venant–Kirchhoff compressed
     past its limit, :meth:`~femshell.shell.model.ShellModel.non_elliptic_elements`); over_folded :
     edges whose mid-edge normal is turned by 80° or more from its faces, a fold sharper than one
-    element carries (:meth:`~femshell.shell.model.ShellModel.diagnose`).
+    element carries (:meth:`~femshell.shell.model.ShellModel.diagnose`); step_error : the step's
+    local error estimate, the largest change of the stretch the source's change over the step would
+    have made (``TimeStepping.step_control``; nan where not estimated).
     """
 
     step: int
@@ -52,6 +54,7 @@ class StepRecord:
     feedback_gain: float = float("nan")
     non_elliptic: int = 0
     over_folded: int = 0
+    step_error: float = float("nan")
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}

@@ -28,7 +28,8 @@ class Checkpointing:
         Keys: version, t, dt, step, c (n,), u (free unknowns), u_prev and h_prev (the
         previous accepted state and step, for the secant predictor and the extrapolated
         source; u_prev empty at step 0), extrapolate (the fraction θ of :func:`stable_extrapolation`
-        the next step takes), stationary_count, n_rejected, n_snaps, newton_total,
+        the next step takes), error_ratio (the last step's local error over ``error_tol``, the
+        memory of the error controller; −1: none), stationary_count, n_rejected, n_snaps, newton_total,
         last_newton_iterations, last_ds, n_vertices, n_free, held_cholesky (whether the last
         state's Hessian is held as a Cholesky factor for the quasi-Newton start of the next step:
         a resumed loop factorises it again, so that it continues exactly as the uninterrupted
@@ -45,6 +46,7 @@ class Checkpointing:
                 "last_ds": float(self._last_ds), "n_vertices": int(self.mesh.n_vertices),
                 "u_prev": (np.zeros(0) if self._u_prev is None else np.asarray(self._u_prev, float).copy()),
                 "h_prev": float(self._h_prev), "extrapolate": float(self._extrapolate),
+                "error_ratio": -1.0 if self._error_ratio is None else float(self._error_ratio),
                 "n_free": int(self.shell.n_free),
                 "held_cholesky": int(self._held_cholesky()),
                 **self._pattern_anchor_state()}
@@ -118,6 +120,9 @@ class Checkpointing:
         self._last_rates = (float("nan"), float("nan"))
         self._last_gain = float("nan")
         self._last_stable = None
+        self._last_error = float("nan")
+        ratio = float(state.get("error_ratio", -1.0))
+        self._error_ratio = ratio if math.isfinite(ratio) and ratio >= 0 else None
         self._restore_pattern_anchor(state)
         self.s = self.growth.stretch(self.c)
         self.growth.apply(self.s)

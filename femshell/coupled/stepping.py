@@ -1,8 +1,10 @@
-r"""Time-step control of the coupled loop (theory §2.8): the step settings and the stability bounds.
+r"""Time-step control of the coupled loop (theory §2.8): the step settings, the stability bounds, the error control.
 
 The staggered step holds the source P(H) of the step's start; a mode of source gain g = ∂P/∂c
 is multiplied per step by a = 1 − q (1 − g/β), q = 1 − e^{−β dt}. The next dt keeps
 a ≥ −ρ (:func:`feedback_step_limit`) with g estimated from the last step (:func:`feedback_gain`).
+Its accuracy is set either by the change of the stretch per step (``step_control = "stretch"``)
+or by the step's local error estimate (``"error"``: :func:`held_source_error`, :func:`error_step_factor`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from .._checks import finite as _finite, integer as _integer
 from ..solvers.linear import BACKENDS
 from .parameters import store_numbers
 
-__all__ = ["TimeStepping", "SOURCE_RULES", "feedback_gain", "feedback_step_limit", "stable_extrapolation"]
+__all__ = ["TimeStepping", "SOURCE_RULES", "STEP_CONTROLS", "feedback_gain", "feedback_step_limit",
+           "stable_extrapolation", "held_source_error", "error_step_factor"]
 
 
 def feedback_gain(dc, dP, fraction: float = 0.1) -> float:
@@ -94,7 +97,69 @@ def stable_extrapolation(g: float, beta: float, rho: float, dt: float, h_prev: f
     return float(min(1.0, max(0.0, theta)))
 
 
+def held_source_error(source_held, source_start, source_end, dt: float, beta: float) -> np.ndarray:
+    r"""Local error of c over a step of length dt whose chemistry held ``source_held``: c_2 − c⁺ per vertex.
+
+    c_2 is the step with the source linear in time from P_n (``source_start``) to P_{n+1}
+    (``source_end``, at the step's converged shape), integrated with the degradation exactly:
+
+        c_2 − c⁺ = φ (P_n − P_held) + ψ (P_{n+1} − P_n),
+        φ = (1 − e^{−β dt})/β,  ψ = ∫_0^dt e^{−β(dt−τ)} τ/dt dτ = (dt − φ)/(β dt)
+
+    (φ = dt, ψ = dt/2 for β = 0). With the held start source (P_held = P_n) it is the
+    trapezoidal correction ψ ΔP ≈ dt ΔP/2, second order in dt against the step's first;
+    the diffusion of the correction is left out (it only smooths it).
+
+    >>> import numpy as np
+    >>> from femshell.coupled import held_source_error
+    >>> held_source_error(np.ones(1), np.ones(1), 3.0 * np.ones(1), 0.01, 0.0)   # ψ ΔP = 0.005 · 2
+    array([0.01])
+    """
+    dt, beta = float(dt), float(beta)
+    bdt = beta * dt
+    if bdt == 0:
+        phi, psi = dt, 0.5 * dt
+    elif bdt < 1e-4:                    # the series, where dt − φ cancels
+        phi, psi = dt * (1 - bdt / 2 + bdt * bdt / 6), dt * (0.5 - bdt / 6 + bdt * bdt / 24)
+    else:
+        phi = -math.expm1(-bdt) / beta
+        psi = (dt - phi) / bdt
+    p_n = np.asarray(source_start, float)
+    return phi * (p_n - np.asarray(source_held, float)) + psi * (np.asarray(source_end, float) - p_n)
+
+
+#: the PI controller's exponents for a local error of order k = 2 in dt: 1/k − 0.75 β and β = 0.08
+#: (Hairer, Nørsett and Wanner's DOPRI5 setting; steady at r = safety^{1/(0.44 − 0.08)})
+_PI_EXPONENTS = (0.44, 0.08)
+
+
+def error_step_factor(ratio: float, ratio_prev: float | None, safety: float, grow: float,
+                      shrink: float = 0.2) -> float:
+    r"""dt_next / dt from the step's error ratio r = error / tolerance (a PI controller, theory §2.8).
+
+    The local error of the staggered step is second order in dt, so the elementary rule is
+    dt_next = dt · safety · r^{−1/2}; with the last accepted step's ratio r_prev (None: the
+    elementary rule) the proportional-integral one, dt · safety · r^{−0.44} r_prev^{0.08},
+    which damps the step sequence where the error jumps (Hairer, Nørsett and Wanner, II §IV.2). Bounded to
+    [``shrink``, ``grow``]; r = 0 (no error seen) grows by ``grow``.
+
+    >>> from femshell.coupled import error_step_factor
+    >>> round(error_step_factor(0.25, None, 0.8, 1.5), 6)   # 0.8 · 0.25^(−1/2) = 1.6 > grow
+    1.5
+    >>> round(error_step_factor(4.0, None, 0.8, 1.5), 6)    # 0.8 / 2
+    0.4
+    """
+    if not ratio > 0:
+        return float(grow) if ratio == 0 else float(shrink)
+    if ratio_prev is None or not ratio_prev > 0:
+        factor = safety * ratio ** -0.5
+    else:
+        factor = safety * ratio ** -_PI_EXPONENTS[0] * ratio_prev ** _PI_EXPONENTS[1]
+    return float(min(grow, max(shrink, factor)))
+
+
 SOURCE_RULES = ("start", "extrapolated")
+STEP_CONTROLS = ("stretch", "error")
 
 
 @dataclass(frozen=True)
@@ -159,6 +224,15 @@ class TimeStepping:
         ``feedback_amplification`` (:func:`stable_extrapolation`: a strong negative feedback
         allows full extrapolation only on 0.4 of the held source's dt; the step keeps its
         length and extrapolates less, down to P_n at the held source's own bound).
+    step_control : what sets the accuracy of a step. "stretch": its change of the stretch, Δs ≤
+        ``ds_max`` (the next dt from ``safety · ds_max / Δs``). "error": its local error, the change
+        of the stretch that the source's change over the step would have made (the step against its
+        second-order counterpart, :func:`held_source_error`; max over elements of |s(c⁺ + e_c) − s(c⁺)|),
+        kept ≤ ``error_tol`` by a PI controller (:func:`error_step_factor`); a step above it is
+        rejected after its equilibrium, and Δs is then only bounded by ``error_ds_max`` (how far
+        Newton reaches). Both keep the feedback bound, ``grow`` and ``dt_max``.
+    error_tol : the local error of the stretch per step allowed under ``step_control = "error"``.
+    error_ds_max : the largest change of the stretch per step under ``step_control = "error"``.
     max_steps : stop after this many accepted steps in one call of :meth:`CoupledLoop.run`.
     """
 
@@ -187,6 +261,9 @@ class TimeStepping:
     newton_stall: int = 10
     feedback_amplification: float = 0.5
     source_rule: str = "start"
+    step_control: str = "stretch"
+    error_tol: float = 0.01
+    error_ds_max: float = 0.25
     max_steps: int | None = None
 
     def __post_init__(self):
@@ -217,9 +294,18 @@ class TimeStepping:
         _integer("snap_max_iter", self.snap_max_iter, 0)
         if self.source_rule not in SOURCE_RULES:
             raise ValueError(f"source_rule must be one of {SOURCE_RULES}, got {self.source_rule!r}")
+        if self.step_control not in STEP_CONTROLS:
+            raise ValueError(f"step_control must be one of {STEP_CONTROLS}, got {self.step_control!r}")
+        _finite("error_tol", self.error_tol, 0.0, lo_open=True, text="(0, inf)")
+        _finite("error_ds_max", self.error_ds_max, 0.0, lo_open=True, text="(0, inf)")
         if self.max_steps is not None:
             _integer("max_steps", self.max_steps, 0, "None or an integer >= 0")
         store_numbers(self)
+
+    @property
+    def stretch_limit(self) -> float:
+        """The largest change of the stretch per step in force: ``ds_max`` or, under error control, ``error_ds_max``."""
+        return self.ds_max if self.step_control == "stretch" else self.error_ds_max
 
     def as_dict(self) -> dict:
         return asdict(self)

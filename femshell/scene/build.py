@@ -473,6 +473,8 @@ def _time_plan(scene: Scene, lines: list, flags: dict, operators: list):
                  f"{so.dt_max:g}], ds_max={so.ds_max:g}"
                  + (", source extrapolated to each step's midpoint where stable"
                     if so.source_rule == "extrapolated" else "")
+                 + (f", steps by their local error <= {so.error_tol:g} (|Δs| <= {so.error_ds_max:g})"
+                    if so.step_control == "error" else "")
                  + ", stationary below rates "
                  f"{so.stationary_rate_c:g}/{so.stationary_rate_x:g} for {so.stationary_steps} steps"
                  f"{pattern_stop}; Newton to stable equilibria")

@@ -421,6 +421,12 @@ class TimeSolver:
     source_rule: str = key(S, "source the chemistry holds over a step: its start's, or extrapolated to its midpoint "
                            "from the last two steps where stable (second order)", factory=_stepping("source_rule"),
                            choices=("start", "extrapolated"))
+    step_control: str = key(S, "what sets the step's accuracy: its change of the stretch (ds_max), or its local error "
+                            "estimate (error_tol)", factory=_stepping("step_control"), choices=("stretch", "error"))
+    error_tol: float = key(F, "local error of the stretch per step (step_control = \"error\")",
+                           factory=_stepping("error_tol"), **POS)
+    error_ds_max: float = key(F, "largest change of the stretch per step (step_control = \"error\")",
+                              factory=_stepping("error_ds_max"), **POS)
     max_steps: int | None = key(I, "stop after this many steps of one invocation (continue with --resume)",
                                 factory=_stepping("max_steps"), lo=0)
     newton_rtol: float | None = _newton_rtol()

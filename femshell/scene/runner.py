@@ -40,8 +40,9 @@ Policy (every file is written atomically by :mod:`femshell.io`):
   ``[output]``, ``solver.t_final``, ``solver.max_steps``, ``solver.stop``,
   ``solver.switch_stop``, ``solver.stationary_pattern_time``,
   ``solver.stationary_pattern_tol`` (so a finished run can be extended), and the time step's
-  cap and source rule, ``solver.dt_max`` (with ``solver.dt_initial``, which a resumed run does not
-  use but which must not exceed dt_max) and ``solver.source_rule``: they change the path's steps,
+  cap, source rule and step control, ``solver.dt_max`` (with ``solver.dt_initial``, which a resumed run
+  does not use but which must not exceed dt_max), ``solver.source_rule``, ``solver.step_control``,
+  ``solver.error_tol`` and ``solver.error_ds_max``: they change the path's steps,
   not the model. The resume says which of these keys changed, and ``summary.json`` keeps every
   such change with the step it came at (``setting_changes``). With the run's own scene the
   time loop and the static solver resume bit for bit as the uninterrupted run; a continuation
@@ -92,7 +93,8 @@ __all__ = ["run_scene", "RunDirError", "RUN_FILES", "recover_run_dir", "pictures
 #: keys that may change between a run and its --resume
 RESUMABLE_CHANGES = {("solver", "t_final"), ("solver", "max_steps"), ("solver", "stop"), ("solver", "switch_stop"),
                      ("solver", "stationary_pattern_time"), ("solver", "stationary_pattern_tol"),
-                     ("solver", "dt_max"), ("solver", "dt_initial"), ("solver", "source_rule")}
+                     ("solver", "dt_max"), ("solver", "dt_initial"), ("solver", "source_rule"),
+                     ("solver", "step_control"), ("solver", "error_tol"), ("solver", "error_ds_max")}
 def runner_class(kind: str):
     """The runner of a solver kind."""
     if kind == "continuation":

@@ -36,7 +36,7 @@ Newton iterations per step do depend on the phase of the run and on the mesh).
 
     .venv/bin/python validation/benchmarks/coupled_step.py \\
         [--sizes 2500 10000 25000] [--full 2500] [--warmup 3] [--steps 6] [--wall-limit 1500] \\
-        [--profile SIZE] [--json out.json]
+        [--profile SIZE] [--set solver.step_control=error ...] [--json out.json]
 
 Results (per-step cost by phase, whole runs, threads) are in docs/studies/benchmarks.md.
 """
@@ -150,13 +150,13 @@ def load():
     return "/".join(f"{x:.1f}" for x in os.getloadavg())
 
 
-def one_size(n, full, warmup, steps, wall_limit, profile):
-    """Run one size in this process; returns a dict of results."""
+def one_size(n, full, warmup, steps, wall_limit, profile, overrides=()):
+    """Run one size in this process (``overrides``: scene key=value after the size); returns a dict of results."""
     from femshell.scene import build
 
     out = {"n_request": n, "load_start": load()}
     t0 = time.perf_counter()
-    scene = build.load_scene("sphere-spots", [f"mesh.n_vertices={n}"])
+    scene = build.load_scene("sphere-spots", [f"mesh.n_vertices={n}", *overrides])
     mesh = build.make_mesh(scene)
     out["t_mesh"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -322,12 +322,15 @@ def main():
     ap.add_argument("--profile", type=int, nargs="*", default=[], help="sizes whose timed steps run under cProfile")
     ap.add_argument("--json", help="write all results here")
     ap.add_argument("--from-json", nargs="*", default=[], help="only print the table of earlier --json files")
+    ap.add_argument("--set", dest="overrides", action="append", default=[],
+                    help="scene key=value for every size, e.g. solver.step_control=error")
     ap.add_argument("--_child", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--_out", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a._child is not None:
         full = a._child in a.full
-        r = one_size(a._child, full, a.warmup, a.steps, a.wall_limit, a._child in a.profile)
+        r = one_size(a._child, full, a.warmup, a.steps, a.wall_limit, a._child in a.profile, a.overrides)
+        r["overrides"] = a.overrides
         r["full"] = full
         with open(a._out, "w") as f:
             json.dump(r, f)
@@ -347,13 +350,14 @@ def main():
     if not a.from_json:
         import tempfile
         print(f"sphere-spots, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, "
-              f"MKL_NUM_THREADS={os.environ.get('MKL_NUM_THREADS', 'unset')}, load {load()}", flush=True)
+              f"MKL_NUM_THREADS={os.environ.get('MKL_NUM_THREADS', 'unset')}, load {load()}"
+              + (f", --set {' '.join(a.overrides)}" if a.overrides else ""), flush=True)
         for n in a.sizes:
             with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as tf:
                 path = tf.name
             cmd = [sys.executable, __file__, "--_child", str(n), "--_out", path, "--warmup", str(a.warmup),
                    "--steps", str(a.steps), "--wall-limit", str(a.wall_limit), "--full", *map(str, a.full),
-                   "--profile", *map(str, a.profile)]
+                   "--profile", *map(str, a.profile), *(f"--set={o}" for o in a.overrides)]
             try:
                 subprocess.run(cmd, check=True)
                 with open(path) as f:
