@@ -349,15 +349,91 @@ def test_a_detected_point_whose_location_fails_is_reported_not_dropped():
             self.lam = lam
 
     said = []
-    b = continuation(FoldGap(), np.ones(1), 0.0, ds=0.2, ds_max=0.2, max_steps=12, stop_at=("fold",), log=said.append)
+    b = continuation(FoldGap(), np.ones(1), 0.0, ds=0.2, ds_max=0.2, max_steps=30, stop_at=("fold",), log=said.append)
     assert b.status == "fold" and len(b.special_points) == 1
     p = b.special_points[0]
     assert not p.located and p.kind == "fold" and "location failed" in p.info["reason"]
     assert p.bracket[0] < 1.0 and p.bracket[1] > 0.99 and p.n_negative_before == 0 and p.n_negative_after == 1
+    assert any("cut (LP not located" in line for line in said)    # the step was cut and retried first
     assert any("not located" in line for line in said) and "not located" in p.summary()
-    assert [r["special"] for r in b.rows].count("LP") == 1
+    # a bracket has no single parameter to misread; the table, the message and the JSON say "not located"
+    assert math.isnan(p.parameter) and "reported as brackets: LP in [" in b.message
+    assert [r["special"] for r in b.rows].count("LP not located") == 1
     assert len({r["s"] for r in b.rows}) == len(b.rows)              # the step's end is one row, labelled
-    assert b.rows[-1]["special"] == "LP" and b.rows[-1]["parameter"] == p.parameter
+    assert b.rows[-1]["special"] == "LP not located" and b.rows[-1]["parameter"] == p.info["state_parameter"]
+    assert b.rows[-1]["parameter"] in p.bracket
+
+
+class Cluster:
+    """Π = ½ (x − λ)² + Σ_i [½ (c_i − λ) y_i² + ¼ y_i⁴]: branch points at λ = c_i on the trivial branch y = 0."""
+
+    def __init__(self, c):
+        self.c = np.asarray(c, float)
+
+    def set_parameter(self, lam):
+        self.lam = lam
+
+    def energy(self, u):
+        y = u[1:]
+        return 0.5 * (u[0] - self.lam) ** 2 + np.sum(0.5 * (self.c - self.lam) * y * y + 0.25 * y**4)
+
+    def gradient(self, u):
+        y = u[1:]
+        return np.concatenate([[u[0] - self.lam], (self.c - self.lam) * y + y**3])
+
+    def hessian(self, u):
+        y = u[1:]
+        return sp.diags(np.concatenate([[1.0], self.c - self.lam + 3 * y * y])).tocsr()
+
+
+def test_a_step_across_a_cluster_of_crossings_is_cut_and_every_crossing_located(monkeypatch, tmp_path):
+    """40 eigenvalues cross zero within 4 % of λ (one step of ds = 0.5 crosses them all, more than one step
+    locates): the step is cut until each crossing is located, with the inertia on either side."""
+    c = 1.0 + 0.001 * np.arange(40)
+    said = []
+    b = continuation(Cluster(c), np.zeros(41), 0.0, ds=0.5, ds_max=0.5, lam_stop=1.5, log=said.append)
+    assert b.status == "lam_stop" and any("cut (the inertia jumps" in line for line in said)
+    bps = b.special_points
+    assert all(p.located and p.kind == "branch" for p in bps) and "not located" not in b.message
+    assert sum(p.info["crossings"] for p in bps) == 40 == sum(p.multiplicity for p in bps)
+    for p in bps:       # each point: the c_i of its crossings, and the inertia it changes
+        assert np.min(np.abs(c - p.parameter)) < 1e-6
+        assert p.n_negative_before == np.sum(c < p.parameter - 1e-6)
+        assert p.n_negative_after == p.n_negative_before + p.multiplicity
+    # without cuts the same step leaves a bracket across most of the step: what the cut avoids
+    monkeypatch.setattr("femshell.solvers.arclength.MAX_CUTS", 0)
+    uncut = continuation(Cluster(c), np.zeros(41), 0.0, ds=0.5, ds_max=0.5, lam_stop=1.5, log=None)
+    assert any(not p.located for p in uncut.special_points)
+
+
+def test_an_inseparable_cluster_is_located_or_bracketed_and_said_so(tmp_path):
+    """40 equal eigenvalues: no cut separates them; what is not located is a narrowed bracket, said as such."""
+    b = continuation(Cluster(np.ones(40)), np.zeros(41), 0.0, ds=0.5, ds_max=0.5, lam_stop=1.5, log=None)
+    located = [p for p in b.special_points if p.located]
+    brackets = [p for p in b.special_points if not p.located]
+    assert located and all(abs(p.parameter - 1.0) < 1e-6 for p in located)
+    assert len(brackets) == 1 and brackets[0].bracket[0] <= 1.0 <= brackets[0].bracket[1]
+    assert brackets[0].bracket[1] - brackets[0].bracket[0] < 0.05            # cut five times from a step of 0.5
+    assert sum(p.info["crossings"] for p in b.special_points) == 40
+    assert "1 special point(s) detected but not located" in b.message
+    write_special_points(b, tmp_path)
+    meta = json.loads((tmp_path / "branch-special-points.json").read_text())["special_points"]
+    assert [m["parameter"] is None for m in meta] == [not p.located for p in b.special_points]
+    assert meta[-1]["located"] is False and meta[-1]["bracket"] == list(brackets[0].bracket)
+
+
+def test_default_ds_min_scales_with_the_step_and_the_parameter_span():
+    """ds_min defaults to 1e-5 min(ds, |lam_stop − lam0| / parameter_scale): a wall stops the run there."""
+    class Wall(Pitchfork):
+        def set_parameter(self, lam):
+            if lam > 0.5:
+                raise ValueError("refused")
+            self.lam = lam
+
+    for kw, ds_min in (({"ds": 0.1}, 1e-6), ({"ds": 0.1, "lam_stop": 0.9}, 1e-6),
+                       ({"ds": 0.1, "lam_stop": 0.6, "parameter_scale": 100.0}, 6e-8)):
+        b = continuation(Wall(), np.zeros(2), 0.0, detect=False, log=None, **kw)
+        assert b.status == "ds_min" and f"ds_min = {ds_min:.3g}" in b.message
 
 
 def test_a_missed_landing_on_lam_stop_stops_there_and_says_so():

@@ -48,8 +48,9 @@ def write_special_points(branch, directory, mesh_writer=None, prefix=None) -> li
     ``mesh_writer(stem: Path, u: ndarray, modes: dict[str, ndarray])`` gets the file stem
     ``directory/<prefix>-special-<k>-<kind>`` (it adds its own extension), the state and the
     critical modes (``"mode_0"``, ...) as vectors of the problem's unknowns, and may return the
-    path it wrote. ``directory/<prefix>-special-points.json`` lists kind, parameter,
-    multiplicity, eigenvalues, inertia and the file of each point (``prefix`` defaults to the
+    path it wrote. ``directory/<prefix>-special-points.json`` lists kind, parameter (null for a
+    point not located: its ``bracket`` and ``located`` say so), multiplicity, eigenvalues, inertia
+    and the file of each point (``prefix`` defaults to the
     branch's label). Returns what the writer returned (the stems when it returned None).
     """
     directory = Path(directory)
@@ -63,7 +64,7 @@ def write_special_points(branch, directory, mesh_writer=None, prefix=None) -> li
             modes = {f"mode_{j}": p.modes[:, j] for j in range(p.modes.shape[1])}
             written = mesh_writer(stem, p.u, modes)
         out.append(written if written is not None else stem)
-        meta.append({"kind": p.kind, "label": p.label, "parameter": p.parameter, "s": p.s,
+        meta.append({"kind": p.kind, "label": p.label, "parameter": finite_or_none(float(p.parameter)), "s": p.s,
                      "multiplicity": p.multiplicity, "n_negative_before": p.n_negative_before,
                      "n_negative_after": p.n_negative_after, "located": p.located,
                      "bracket": [finite_or_none(float(x)) for x in p.bracket],

@@ -356,7 +356,7 @@ class ContinuationSolver:
     start: float | None = key(F, "start value (default: the scene's value, 0 for loads.factor)")
     stop: float | None = key(F, "stop exactly at this value (above or below the start: the branch sets off toward it)")
     ds: float = key(F, "first arclength step (weighted, dimensionless)", 0.05, **POS)
-    ds_min: float | None = key(F, "smallest step (default ds/1000)", **POS)
+    ds_min: float | None = key(F, "smallest step (default 1e-5 min(ds, parameter span / parameter_scale))", **POS)
     ds_max: float | None = key(F, "largest step (default 2 ds)", **POS)
     max_steps: int = key(I, "accepted steps of one branch", 200, lo=1)
     n_eigs: int = key(I, "smallest eigenvalues recorded per step", 3, lo=0, hi=20)

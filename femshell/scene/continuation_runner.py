@@ -353,7 +353,8 @@ class ContinuationRunner(BaseRunner):
 
         m = meshio.Mesh(x, [("triangle", self.mesh.triangles)], point_data=pdata)
         fio.atomic_write(path, lambda tmp: meshio.write(tmp, m, file_format="vtu"))
-        info = {"branch": label, "kind": sp.kind, "label": sp.label, "parameter": sp.parameter,
+        info = {"branch": label, "kind": sp.kind, "label": sp.label,
+                "parameter": sp.parameter if sp.located else None,     # a bracket has no parameter
                 "multiplicity": sp.multiplicity, "n_negative_before": sp.n_negative_before,
                 "n_negative_after": sp.n_negative_after, "eigenvalues": list(np.asarray(sp.eigenvalues)[:6]),
                 "located": sp.located, "file": str(path.relative_to(self.rd.path))}
@@ -416,6 +417,10 @@ class ContinuationRunner(BaseRunner):
         lines = [f"{self.param} = {fin['final_value']:.8g} at the end: amplitude {fin['amplitude']:.4g}"
                  + (f", {fin['wrinkles']} wrinkles" if "wrinkles" in fin else "")]
         for s in self.specials:
+            if not s.get("located", True):
+                lines.append(f"{s['branch']}: {s['label']} between {self.param} = {s['bracket'][0]:.8g} and "
+                             f"{s['bracket'][1]:.8g}, not located")
+                continue
             lines.append(f"{s['branch']}: {s['label']} at {self.param} = {s['parameter']:.8g}, multiplicity "
                          f"{s['multiplicity']}" + (f", mode n = {s['mode_n']}" if "mode_n" in s else ""))
         return lines

@@ -3,8 +3,12 @@ r"""Pseudo-arclength continuation: the predictor/corrector loop with step contro
 :func:`continuation` follows r(u, λ) = 0 from (u0, λ0): predictor (u, λ) + ds·t, corrector on the
 hyperplane ⟨(u, λ) − predictor, t⟩_W = 0 (:mod:`.corrector`), special points between accepted
 points (:mod:`.special_points`). ds grows by ``grow`` after a corrector of at most
-``fast_iterations`` iterations and halves after a failure; below ``ds_min`` the run stops. The
-result is a :class:`~femshell.solvers.branch.Branch`: the caller writes it (:mod:`femshell.io`).
+``fast_iterations`` iterations and halves after a failure; below ``ds_min`` the run stops. A step
+that crosses more eigenvalues than one step locates, or in which a special point cannot be
+located, is cut (halved) and retried, up to ``MAX_CUTS`` times per special point (if no shorter
+step converges, the cut step is taken after all); what still cannot be located is reported as a bracket (:class:`~femshell.solvers.branch.SpecialPoint` with
+``located=False`` and no parameter). The result is a :class:`~femshell.solvers.branch.Branch`: the
+caller writes it (:mod:`femshell.io`).
 """
 
 from __future__ import annotations
@@ -23,6 +27,11 @@ from .special_points import _Context
 
 __all__ = ["continuation"]
 
+#: retries with a halved step before a special point that cannot be located is reported as a bracket
+MAX_CUTS = 5
+#: the default ds_min, relative to the smaller of ds and the run's parameter span in the arclength
+DS_MIN_FRACTION = 1e-5
+
 
 def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=None, max_steps=200, weights=None,
                  parameter_scale=None, direction=+1, record=None, callback=None, detect=True, log=print,
@@ -38,7 +47,8 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     u0, lam0 : start; u0 is first corrected to an equilibrium at lam0 (Newton), or, with
         ``initial_tangent``, on the hyperplane through (u0, lam0) orthogonal to it.
     ds, ds_min, ds_max : first, smallest and largest step in the weighted arclength
-        (defaults: ds_min = ds/1000, ds_max = 10 ds).
+        (defaults: ds_max = 10 ds; ds_min = 1e-5 × min(ds, |lam_stop − lam0| / parameter_scale),
+        1e-5 ds without lam_stop).
     lam_stop : stop exactly at this parameter value (when a step crosses it).
     max_steps : number of accepted steps.
     weights : per-unknown weights of the norm, > 0 (default ``problem.dof_weights()`` or ones).
@@ -73,7 +83,8 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     lam0 = finite("lam0", lam0)
     if lam_stop is not None:
         lam_stop = finite("lam_stop", lam_stop, text="(-inf, inf), or None")
-    ds, ds_min, ds_max = _checked_steps(ds, ds_min, ds_max)
+    ds, ds_min, ds_max = _checked_steps(ds, ds_min, ds_max, None if lam_stop is None
+                                        else abs(lam_stop - lam0) / parameter_scale)
     if direction not in (1, -1):
         raise ValueError(f"direction must be +1 or -1, got {direction}")
     grow, max_turn_deg, rtol, atol, xtol, locate_tol, fd_step, cluster_tol, dip_tol = (
@@ -116,6 +127,10 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
         eng.release()
     if not keep_states and branch.states:
         branch.states[-1] = (A.u, A.lam)
+    unlocated = [p for p in branch.special_points if not p.located]
+    if unlocated:
+        branch.message += (f"; {len(unlocated)} special point(s) detected but not located, reported as brackets: "
+                           + ", ".join(f"{p.label} in [{p.bracket[0]:.8g}, {p.bracket[1]:.8g}]" for p in unlocated))
     branch.wall_s = time.perf_counter() - t_start
     branch.counts = dict(eng.counts)
     if log:
@@ -139,10 +154,16 @@ def _checked_weights(problem, weights, n):
     return weights
 
 
-def _checked_steps(ds, ds_min, ds_max):
-    """(ds, ds_min, ds_max) with the defaults ds/1000 and 10 ds; 0 < ds_min <= ds <= ds_max < inf."""
+def _checked_steps(ds, ds_min, ds_max, span=None):
+    """(ds, ds_min, ds_max) with the defaults 1e-5 min(ds, span) and 10 ds; 0 < ds_min <= ds <= ds_max < inf.
+
+    ``span``: the run's parameter range in the arclength, |lam_stop − lam0| / parameter_scale
+    (a fold or a cluster of branch points may need steps far below ds when ds is a fair part of it).
+    """
     ds = finite("ds", ds, 0.0, lo_open=True, text="(0, inf)")
-    ds_min = ds / 1000.0 if ds_min is None else float(ds_min)
+    if ds_min is None:
+        ds_min = DS_MIN_FRACTION * (min(ds, span) if span else ds)
+    ds_min = float(ds_min)
     ds_max = 10.0 * ds if ds_max is None else float(ds_max)
     if not (0 < ds_min <= ds <= ds_max < math.inf):
         raise ValueError(f"need 0 < ds_min <= ds <= ds_max < inf, got {ds_min}, {ds}, {ds_max}")
@@ -231,9 +252,12 @@ def _follow(eng, ctx, problem, branch, A, ds, c):
     history = [(A, 0.0)]  # (point, s) of the accepted points (last three)
     s = 0.0
     step = 0
+    cuts = 0              # steps cut since the last special point
+    pending = None        # the last step cut for a special point: taken after all if no shorter step converges
     while True:
         if step >= c.max_steps:
             return A, step, ("max_steps", f"{c.max_steps} steps done")
+        forced = False
         try:
             B = _trial_step(eng, A, ds, c.cos_max)
         except _StepFailure as exc:
@@ -241,18 +265,36 @@ def _follow(eng, ctx, problem, branch, A, ds, c):
             ds *= 0.5
             if c.log:
                 c.log(f"    step from parameter {A.lam:.8g} failed ({reason}); ds -> {ds:.3g}")
-            if ds < c.ds_min:
+            if ds >= c.ds_min:
+                continue
+            if pending is None:
                 why = eng.diagnose(A)
                 return A, step, ("ds_min", f"step size fell below ds_min = {c.ds_min:.3g} at parameter {A.lam:.8g} "
                                            f"(last failure: {reason})" + (f". At the last accepted point {why}" if why
                                                                           else ""))
-            continue
+            B, forced, pending = pending, True, None
+            if c.log:
+                c.log(f"    no shorter step converges: the cut step to parameter {B.lam:.8g} is taken after all")
         B, sigma_B, landed = _landing(eng, A, B, c.lam_stop, ds)
+        if forced:
+            ds = sigma_B
+        found = []
+        if c.detect:
+            found, cut = _detect_or_cut(ctx, branch, A, B, s, sigma_B, step, history,
+                                        not forced and cuts < MAX_CUTS and 0.5 * ds >= c.ds_min)
+            if cut:
+                cuts += 1
+                ds *= 0.5
+                pending = B
+                if c.log:
+                    c.log(f"    step from parameter {A.lam:.8g} to {B.lam:.8g} cut ({cut}); ds -> {ds:.3g}")
+                continue
         step += 1
-        found = ctx.detect(A, B, s, sigma_B, step - 1, history) if c.detect else []
+        if found:
+            cuts, pending = 0, None
         eng.set(B.lam)     # the location's trial points moved the problem's parameter
         s += sigma_B
-        ctx.add_row(B, s, step, ds=sigma_B, special=next((p.label for p in found if p.info.get("at_step_end")), ""))
+        ctx.add_row(B, s, step, ds=sigma_B, special=next((p.row_label for p in found if p.info.get("at_step_end")), ""))
         if hasattr(problem, "accept"):
             problem.accept(B.u)
         if c.log:
@@ -269,6 +311,31 @@ def _follow(eng, ctx, problem, branch, A, ds, c):
             return A, step, stop
         if B.iterations <= c.fast_iterations:
             ds = min(ds * c.grow, c.ds_max)
+
+
+def _detect_or_cut(ctx, branch, A, B, s, sigma_B, step, history, may_cut):
+    """(special points found in the step A → B, why to cut the step, or "").
+
+    With ``may_cut``, a step that crosses more eigenvalues than one step can locate is cut
+    unsearched, and one with a point that was not located is cut after the search, whose rows and
+    points are taken back (and the earlier point a crossing was merged into is restored). A
+    multiple crossing that is located (the cos/sin modes of a disk cross together) is kept: no cut
+    would separate it.
+    """
+    if may_cut and None not in (A.n_negative, B.n_negative) \
+            and abs(B.n_negative - A.n_negative) > ctx.max_crossings:
+        return [], f"the inertia jumps from {A.n_negative} to {B.n_negative}"
+    n_rows, n_points = len(branch.rows), len(branch.special_points)
+    last = branch.special_points[-1] if branch.special_points else None
+    saved = None if last is None else dict(last.info)
+    found = ctx.detect(A, B, s, sigma_B, step, history)
+    failed = next((p for p in found if not p.located), None)
+    if failed is None or not may_cut:
+        return found, ""
+    del branch.rows[n_rows:], branch.states[n_rows:], branch.special_points[n_points:]
+    if last is not None:
+        last.info = saved
+    return [], f"{failed.label} not located: {failed.info.get('reason', '')}"
 
 
 def _trial_step(eng, A, ds, cos_max):

@@ -26,8 +26,9 @@ class SpecialPoint:
     """A fold ("fold"), branch point ("branch") or possible symmetric bifurcation ("possible_branch").
 
     ``located``: False when the point was detected (dλ/ds or the inertia changed sign over a
-    step) but its location failed; it is then reported at the step's end, with ``bracket`` the
-    step's parameter range, no ``modes`` and ``info["reason"]``.
+    step) but not located, even on cut steps; it is then a bracket: ``parameter`` is NaN,
+    ``bracket`` the step's parameter range, ``u`` the step's end (at ``info["state_parameter"]``),
+    no ``modes``, and ``info["reason"]`` says why.
     ``u``, ``parameter``: the state; ``tangent``: (t_u, t_λ) of the branch there;
     ``eigenvalues``: the eigenvalues of K nearest zero there, ascending; ``modes``: (n, multiplicity) the
     critical eigenvector(s) (Euclidean-orthonormal, each with its largest entry positive);
@@ -56,6 +57,11 @@ class SpecialPoint:
     @property
     def label(self) -> str:
         return LABELS.get(self.kind, self.kind)
+
+    @property
+    def row_label(self) -> str:
+        """The label in the branch table: "BP", or "BP not located" for a bracket."""
+        return self.label if self.located else f"{self.label} not located"
 
     def summary(self) -> str:
         if not self.located:

@@ -38,6 +38,12 @@ class _Context:
         self.log, self.t0 = log, t0
         self._step_end = None       # the end of the step being searched (an unlocated point is reported there)
 
+    @property
+    def max_crossings(self):
+        """The most crossings one step can locate: MAX_CROSSINGS_PER_STEP points, each of multiplicity up to
+        the window of eigenvalues searched."""
+        return MAX_CROSSINGS_PER_STEP * max(self.n_eigs, 4)
+
     # ---- rows
     def add_row(self, P, s, step, ds, special=""):
         row = {"step": step, "s": s, "parameter": P.lam, "energy": P.energy, "n_negative": P.n_negative,
@@ -126,17 +132,18 @@ class _Context:
         return found
 
     def _unlocated(self, kind, A, B, s_A, sigma_B, step, reason, crossings=None, n_before=None):
-        """A special point detected in the step A → B but not located: reported at B, ``located=False``.
+        """A special point detected in the step A → B but not located: a bracket, ``located=False``.
 
-        The step's end is a converged state with the new inertia; its parameter is within the
-        step of the special point (the bracket). It has no critical modes (no branch switching).
+        Its ``parameter`` is NaN (no value to misread) and ``bracket`` the step's parameters; ``u``
+        is the step's end, a converged state with the new inertia at ``info["state_parameter"]``.
+        It has no critical modes (no branch switching).
         """
         n_after = B.n_negative
         n_before = A.n_negative if n_before is None else n_before
-        info = {"reason": reason}
+        info = {"reason": reason, "state_parameter": float(B.lam)}
         if crossings is not None:
             info["crossings"] = crossings
-        p = SpecialPoint(kind=kind, parameter=float(B.lam), s=s_A + sigma_B, u=B.u.copy(), tangent=(B.t_u, B.t_lam),
+        p = SpecialPoint(kind=kind, parameter=math.nan, s=s_A + sigma_B, u=B.u.copy(), tangent=(B.t_u, B.t_lam),
                          eigenvalues=np.array([math.nan]) if B.eigenvalues is None else B.eigenvalues,
                          modes=np.zeros((len(B.u), 0)), multiplicity=0, n_negative_before=n_before,
                          n_negative_after=n_after, step=step, bracket=tuple(sorted((A.lam, B.lam))), located=False,
@@ -145,10 +152,10 @@ class _Context:
         if B is self._step_end:
             p.info["at_step_end"] = True        # the step's own row carries the label
         else:
-            self.add_row(B, s_A + sigma_B, step, ds=sigma_B, special=p.label)
+            self.add_row(B, s_A + sigma_B, step, ds=sigma_B, special=p.row_label)
         if self.log:
             self.log(f"    {p.label} detected between parameters {A.lam:.8g} and {B.lam:.8g} but not located "
-                     f"({reason}); reported at {B.lam:.8g}")
+                     f"({reason})")
         return p
 
     def _illinois(self, f, a, fa, b, fb):
@@ -267,13 +274,14 @@ class _Context:
             if prev is not None and prev.kind == "branch" and abs(prev.parameter - P.lam) <= tol \
                     and prev.info.get("crossings", 1) < prev.multiplicity:
                 prev.info["crossings"] = prev.info.get("crossings", 1) + 1
-                prev.n_negative_after = P_hi.n_negative
                 if self.log:
                     self.log(f"    crossing at parameter {P.lam:.10g} belongs to the {prev.label} at "
                              f"{prev.parameter:.10g} (multiplicity {prev.multiplicity})")
                 j += 1 if up else -1
                 continue
-            sp_ = self._special("branch", A, P, sig, s_A, step, k, P_lo.n_negative, P_hi.n_negative,
+            # eigenvalue j crosses: the inertia is j just below (j + 1 just above, downwards) by definition
+            # (the bracket's ends need not be tight on both sides)
+            sp_ = self._special("branch", A, P, sig, s_A, step, k, j if up else j + 1, nb,
                                 (P_lo.lam, P_hi.lam), crit=j, ref=Pa if sa == 0 else P_lo)
             out.append(sp_)
             m = max(sp_.multiplicity, 1)
