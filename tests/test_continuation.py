@@ -365,7 +365,7 @@ def test_a_detected_point_whose_location_fails_is_reported_not_dropped():
 
 
 class Cluster:
-    """Π = ½ (x − λ)² + Σ_i [½ (c_i − λ) y_i² + ¼ y_i⁴]: branch points at λ = c_i on the trivial branch y = 0."""
+    """Π = ½ (x − λ)² + Σ_i [½ (c_i − λ) y_i² + ¼ y_i⁴]: branch points at λ = c_i on the trivial branch."""
 
     def __init__(self, c):
         self.c = np.asarray(c, float)

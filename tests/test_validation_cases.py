@@ -358,3 +358,20 @@ def test_disk_cases_solved_in_worker_processes_are_checkpointed_and_read_back(tm
     save_checkpoint(path, {"u": state["u"], "record": json.dumps(dict(record, count=record["count"] + 1))}, meta)
     with pytest.raises(ValueError, match="differs from what it saved"):
         dw.solve_cases(cfg, tmp_path)
+
+
+def test_refinement_ladder_order_and_richardson_without_the_reference():
+    """v(h) = 1 − 0.3 (h/h0)^1.5 (h ∝ n^−1/2): the order from three values alone is 1.5 and the Richardson
+    estimate with it is 1; with two meshes the assumed order is said and nothing is toleranced."""
+    from femshell.validation.shell_buckling import convergence_rows, order_from_values
+
+    ns = [1000, 2000, 4000, 8000]
+    values = [1 - 0.3 * (n / 1000) ** -0.75 for n in ns]
+    assert abs(order_from_values(ns, values) - 1.5) < 1e-9
+    rows = {r.quantity: r for r in convergence_rows("q", ns, values, tol=1e-6)}
+    assert abs(rows["observed order of q from its three finest values"].value - 1.5) < 1e-9
+    assert rows["q, Richardson from the two finest meshes with that order"].passed
+    assert abs(rows["observed order of q error against the reference (finest 4 meshes)"].value - 1.5) < 1e-9
+    two = convergence_rows("q", ns[:2], values[:2], tol=1e-6)
+    assert [r.tolerance for r in two] == [None, None] and "(assumed)" in two[-1].quantity
+    assert order_from_values(ns[:3], [0.9, 0.95, 1.01]) is None        # differences that do not shrink

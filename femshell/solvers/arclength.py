@@ -6,9 +6,9 @@ points (:mod:`.special_points`). ds grows by ``grow`` after a corrector of at mo
 ``fast_iterations`` iterations and halves after a failure; below ``ds_min`` the run stops. A step
 that crosses more eigenvalues than one step locates, or in which a special point cannot be
 located, is cut (halved) and retried, up to ``MAX_CUTS`` times per special point (if no shorter
-step converges, the cut step is taken after all); what still cannot be located is reported as a bracket (:class:`~femshell.solvers.branch.SpecialPoint` with
-``located=False`` and no parameter). The result is a :class:`~femshell.solvers.branch.Branch`: the
-caller writes it (:mod:`femshell.io`).
+step converges, the cut step is taken after all); what still cannot be located is reported as a
+bracket (:class:`~femshell.solvers.branch.SpecialPoint` with ``located=False`` and no parameter).
+The result is a :class:`~femshell.solvers.branch.Branch`: the caller writes it (:mod:`femshell.io`).
 """
 
 from __future__ import annotations

@@ -36,6 +36,8 @@ CASES = {
     "thin-shell-locking": "thin_shell_locking",
     "poor-meshes": "poor_meshes",
     "extremes": "extremes",
+    "sphere-pressure-buckling": "sphere_pressure_buckling",
+    "cylinder-axial-buckling": "cylinder_axial_buckling",
 }
 LEVELS = ("quick", "full")
 
