@@ -58,6 +58,19 @@ def raise_if_interrupted():
         raise KeyboardInterrupt
 
 
+def request_interrupt():
+    """Stop the run of this process at its next step, as a Ctrl-C would (from any thread: a sweep's
+    worker runs its point outside the main thread, where no signal arrives)."""
+    global _interrupted
+    _interrupted = True
+
+
+def clear_interrupt():
+    """Forget a requested stop that no run has taken (before a new run starts in the same process)."""
+    global _interrupted
+    _interrupted = False
+
+
 @contextlib.contextmanager
 def interruptible():
     """SIGINT and SIGTERM raise KeyboardInterrupt in the block (via :func:`interrupt_handler`).

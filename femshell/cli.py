@@ -1,4 +1,4 @@
-"""The ``femshell`` command line: ``mesh``, ``validate``, ``run``, ``scenes``, ``render``; exit code 0 done,
+"""The ``femshell`` command line: ``mesh``, ``validate``, ``run``, ``sweep``, ``scenes``, ``render``; exit code 0 done,
 1 failed, 2 bad input (one clear line per problem, no traceback), 130 interrupted."""
 
 from __future__ import annotations
@@ -101,6 +101,41 @@ def _run_parser(sub):
     r.add_argument("-v", "--verbose", action="store_true", help="also print step cuts and solver details")
 
 
+def _sweep_parser(sub):
+    w = sub.add_parser(
+        "sweep", help="run a scene over a grid or list of parameter values on Dask (local or a cluster)",
+        description="Run every point of a sweep spec (a base scene and scene keys varied over it) as an ordinary\n"
+                    "run directory DIR/points/<key>/, on a Dask LocalCluster (one single-threaded worker process\n"
+                    "per CPU) or an existing Dask cluster; writes DIR/manifest.json, DIR/results.csv (+ .parquet\n"
+                    "with pyarrow), DIR/phase_diagram.png and DIR/contact_sheet.png (docs/guide/sweeps.md).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="spec (TOML):\n"
+               '  scene = "default"                      embedded scene name or .toml path (relative to the spec)\n'
+               '  mode = "product"                       or "zip" (the i-th values of every axis together)\n'
+               '  measures = ["regime", "n_spots"]       table columns (default: all)\n'
+               '  [set]   "solver.t_final" = 20          scene keys set at every point\n'
+               '  [vary]  "growth.c_star" = [0.05, 0.1]  the axes: dotted scene keys and their values\n'
+               '  [plot]  x = "growth.c_star"            phase diagram axes (default: the first two of [vary])\n\n'
+               "examples:\n"
+               "  femshell sweep grid.toml --out runs/grid                 local cluster, one worker per CPU\n"
+               "  femshell sweep grid.toml --out runs/grid --resume        continue after Ctrl-C or a kill\n"
+               "  femshell sweep grid.toml --scheduler tcp://host:8786     workers: dask worker --nthreads 1\n"
+               "  femshell sweep --plot runs/grid                          table and pictures again\n\n"
+               "The spec and every point's scene are validated before anything starts. A point that fails is\n"
+               "recorded and the others go on; a worker killed mid-point is replaced and the point resumes from\n"
+               "its checkpoint. Ctrl-C stops every point at its next step (checkpointed); --resume continues.\n"
+               "exit codes: 0 every point finished, 1 some failed, 2 bad input, 130 interrupted")
+    w.add_argument("spec", nargs="?", help="the sweep spec (.toml)")
+    w.add_argument("--out", help="output directory (default: ./SPECNAME-sweep)")
+    w.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
+    w.add_argument("--workers", type=int, metavar="N", help="local cluster: N worker processes (default: one per "
+                                                                "CPU, at most one per point)")
+    w.add_argument("--resume", action="store_true", help="continue the sweep in --out (finished points are skipped)")
+    w.add_argument("--retry-failed", action="store_true", help="with --resume: run the failed points again too")
+    w.add_argument("--plot", metavar="DIR", help="only write DIR's results table and pictures again")
+    w.add_argument("--no-plot", action="store_true", help="no phase diagram or contact sheet at the end")
+
+
 def _parser():
     p = argparse.ArgumentParser(
         prog="femshell",
@@ -109,6 +144,7 @@ def _parser():
                     "  mesh      generate a mesh (sphere, disk, plate, strip, annulus, cylinder, hemisphere)\n"
                     "  validate  run a validation case against theory or a benchmark\n"
                     "  run       run a scene (a .toml file or an embedded scene name)\n"
+                    "  sweep     run a scene over a grid of parameter values on Dask\n"
                     "  scenes    list the embedded scenes\n"
                     "  render    pictures and a movie of a finished run",
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -124,6 +160,7 @@ def _parser():
     v.add_argument("--out", default="validation-out", help="output directory (default: validation-out)")
 
     _run_parser(sub)
+    _sweep_parser(sub)
 
     sc = sub.add_parser("scenes", help="list the embedded scenes, one line each; `scenes NAME` prints one",
                         description="List the embedded scenes; with a NAME, print that scene's TOML file "
@@ -263,6 +300,26 @@ def _cmd_run(args):
                      quiet=args.quiet, verbose=args.verbose)
 
 
+def _cmd_sweep(args):
+    from .sweep import finish, load_spec, read_manifest, run_sweep      # deferred: the solvers
+
+    if args.plot:
+        if args.spec or args.resume or args.scheduler or args.workers or args.out:
+            raise ValueError("--plot DIR redraws a sweep's table and pictures: give it alone")
+        manifest = read_manifest(Path(args.plot))
+        if manifest is None:
+            raise ValueError(f"--plot {args.plot}: no sweep there (no manifest.json)")
+        finish(Path(args.plot).resolve(), manifest, sys.stdout)
+        return 0
+    if not args.spec:
+        raise ValueError("give a SPEC (a sweep's .toml file; see femshell sweep --help), or --plot DIR")
+    if args.retry_failed and not args.resume:
+        raise ValueError("--retry-failed applies to --resume")
+    spec = load_spec(args.spec)
+    return run_sweep(spec, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
+                     retry_failed=args.retry_failed, plot=not args.no_plot)
+
+
 def _cmd_scenes(args):
     from .scene import embedded_scene_path, list_scenes
 
@@ -322,8 +379,8 @@ def main(argv=None):
     if args.command is None:
         parser.print_help()
         return 0
-    handler = {"mesh": _cmd_mesh, "validate": _cmd_validate, "run": _cmd_run, "scenes": _cmd_scenes,
-               "render": _cmd_render}[args.command]
+    handler = {"mesh": _cmd_mesh, "validate": _cmd_validate, "run": _cmd_run, "sweep": _cmd_sweep,
+               "scenes": _cmd_scenes, "render": _cmd_render}[args.command]
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
