@@ -14,7 +14,7 @@ ordinary run directory per point, see :mod:`femshell.scene.runner`), ``results.c
 * ``resume``: a sweep killed or stopped (the client by ``kill -9``, Ctrl-C) continues: the spec must
   give the same points; finished points are skipped, failed ones too unless ``retry_failed``, the
   others resume from their checkpoints. Without ``resume`` a ``DIR`` holding a sweep is refused.
-* Ctrl-C cancels the points' tasks; each running point stops at its next step with a checkpoint
+* Ctrl-C (or SIGTERM) cancels the points' tasks; each running point stops at its next step with a checkpoint
   (waited for up to ``STOP_GRACE_S``; a second Ctrl-C stops waiting), then the cluster is closed and
   the manifest says "interrupted" for them. Exit codes: 0 every point finished, 1 some failed,
   130 interrupted.
@@ -29,6 +29,7 @@ import time
 import uuid
 from pathlib import Path
 
+from .._interrupts import interruptible
 from ..scene.rundir import LOCK, RunDir, RunDirError, pid_alive
 from .point import run_point
 from .table import (MANIFEST, POINTS, new_manifest, point_state, read_manifest, rows, write_manifest,
@@ -156,10 +157,11 @@ def _run_points(spec, out, manifest, todo, client, bar):
             state = _record(manifest, p, rec)
             write_manifest(out, manifest)
             bar.update(1)
-            bar.write(_line(p, rec, state))
+            bar.write(_line(p, rec, state), file=bar.fp)
     except KeyboardInterrupt:
         client.cancel(list(left))
-        bar.write(f"interrupted: stopping {len(left)} point(s) at their next step (Ctrl-C again: stop now) ...")
+        bar.write(f"interrupted: stopping {len(left)} point(s) at their next step (Ctrl-C again: stop now) ...",
+                  file=bar.fp)
         with contextlib.suppress(KeyboardInterrupt):
             _wait_for_stops(out, left.values(), STOP_GRACE_S)
         for p in left.values():
@@ -202,7 +204,8 @@ def run_sweep(spec, out=None, *, scheduler=None, workers=None, resume=False, ret
         if todo:
             with _client(scheduler, workers, len(todo)) as (client, what):
                 print(f"running {len(todo)} point(s) on {what}", file=stream, flush=True)
-                with tqdm(total=len(todo), unit="point", file=stream, dynamic_ncols=True, leave=False) as bar:
+                with tqdm(total=len(todo), unit="point", file=stream, dynamic_ncols=True, leave=False) as bar, \
+                        interruptible():      # SIGTERM stops the sweep as Ctrl-C does
                     code = _run_points(spec, out, manifest, todo, client, bar)
         summary_code = finish(out, manifest, stream, plot=plot and code != 130)
     return code or summary_code
