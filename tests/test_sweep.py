@@ -102,6 +102,11 @@ def test_tiny_sweep_two_workers_with_a_failing_point(tmp_path):
         assert int(row["n_spots"]) == summ["final"]["pattern"]["n_spots"]
         assert float(row["max_c"]) == summ["final"]["max_c"] and row["worker"].startswith("tcp://127.0.0.1:")
     assert (out / "phase_diagram.png").stat().st_size > 0 and (out / "contact_sheet.png").stat().st_size > 0
+    # --plot DIR draws them again from the run directories alone
+    for name in ("phase_diagram.png", "contact_sheet.png", "results.csv"):
+        (out / name).unlink()
+    assert main(["sweep", "--plot", str(out)]) == 0
+    assert (out / "phase_diagram.png").exists() and read_results(out) == list(rows.values())
     # a resume has nothing to run: the failed point is skipped (without --retry-failed), no cluster starts
     t0 = time.perf_counter()
     assert main(["sweep", str(tmp_path / "spec.toml"), "--out", str(out), "--resume", "--no-plot"]) == 1

@@ -82,7 +82,7 @@ def phase_diagram(out: Path, manifest: dict, table: list) -> Path:
     panels = [dict(zip(others, combo)) for combo in itertools.product(*(_axis_values(manifest, a) for a in others))]
     ncol = min(len(panels), 3)
     nrow = math.ceil(len(panels) / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol + 1.6, 3.6 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.6 * nrow), squeeze=False)
     for ax, panel in zip(axes.flat, panels):
         _phase_panel(ax, manifest, table, x, y, panel)
     for ax in list(axes.flat)[len(panels):]:
@@ -92,12 +92,13 @@ def phase_diagram(out: Path, manifest: dict, table: list) -> Path:
     handles += [Line2D([], [], marker="x", color="0.5", linestyle="", markersize=9, label="failed"),
                 Line2D([], [], marker="o", color="0.5", markerfacecolor="none", linestyle="", markersize=9,
                        label="not finished")]
-    fig.legend(handles=handles, loc="center right", fontsize=8, title="regime (label: N_spots)")
     fig.suptitle(manifest.get("description") or f"regimes over {', '.join(manifest['axes'])}", fontsize=10)
-    fig.tight_layout(rect=(0, 0, 1 - 1.5 / (4.2 * ncol + 1.6), 0.95))
+    fig.tight_layout()
+    fig.legend(handles=handles, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8,
+               title="regime (label: N_spots)")
     path = Path(out) / PHASE
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
+        fig.savefig(tmp, dpi=110, format="png", bbox_inches="tight")
     plt.close(fig)
     return path
 
@@ -132,7 +133,7 @@ def contact_sheet(out: Path, manifest: dict, table: list) -> Path:
     fig.tight_layout()
     path = Path(out) / SHEET
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
+        fig.savefig(tmp, dpi=110, format="png", bbox_inches="tight")
     plt.close(fig)
     return path
 
