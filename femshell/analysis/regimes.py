@@ -4,15 +4,13 @@ The regions are those of :func:`~femshell.analysis.find_spots`: the connected co
 {c > c*} (low contractility Λ, so grown tissue), each labelled "spot" or "ridge" by its
 elongation A/(π r_in²). The rules, applied in this order to the pattern at the end of a run:
 
-=================  ==========================================================================
-``decay``          no region with c > c* (nothing grows: the seeded spot died out)
-``uniform``        the regions cover at least ``uniform_fraction`` (default 0.9) of the area:
-                   c > c* nearly everywhere, no pattern of separate regions
-``ridges``         every region is a ridge (elongated lines or bands)
-``mixed``          both kinds: at least one ridge and at least one spot
-``single bulge``   exactly one region, a spot
-``spots``          two or more regions, all of them spots
-=================  ==========================================================================
+1. ``decay``: no region with c > c* (nothing grows: the seeded spot died out);
+2. ``uniform``: the regions cover at least ``uniform_fraction`` (default 0.9) of the area:
+   c > c* nearly everywhere, no pattern of separate regions;
+3. ``ridges``: every region is a ridge (elongated lines or bands);
+4. ``mixed``: both kinds, at least one ridge and at least one spot;
+5. ``single bulge``: exactly one region, a spot;
+6. ``spots``: two or more regions, all of them spots.
 
 The classifier reads only the counts and the patterned fraction, so it applies equally to
 :class:`~femshell.analysis.PatternMeasures` and to the ``pattern`` table of a run's
