@@ -34,14 +34,25 @@ REPRODUCIBLE_ENV = {"MKL_THREADING_LAYER": "SEQUENTIAL", "MKL_CBWR": "AUTO,STRIC
 JAX_CACHE_MIN_COMPILE_SECONDS = 0.5
 
 
-def default_jax_cache_dir() -> Path:
-    """``$FEMSHELL_JAX_CACHE`` if set, else ``femshell-jax`` in the user's cache directory
-    (``$XDG_CACHE_HOME``, default ``~/.cache``)."""
-    given = os.environ.get("FEMSHELL_JAX_CACHE", "").strip()
+def _user_cache_dir(variable: str, name: str) -> Path:
+    """``$variable`` if set, else ``name`` in the user's cache directory (``$XDG_CACHE_HOME``, default ``~/.cache``)."""
+    given = os.environ.get(variable, "").strip()
     if given:
         return Path(given).expanduser()
     base = os.environ.get("XDG_CACHE_HOME", "").strip() or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "femshell-jax"
+    return Path(base) / name
+
+
+def default_jax_cache_dir() -> Path:
+    """``$FEMSHELL_JAX_CACHE`` if set, else ``femshell-jax`` in the user's cache directory
+    (``$XDG_CACHE_HOME``, default ``~/.cache``)."""
+    return _user_cache_dir("FEMSHELL_JAX_CACHE", "femshell-jax")
+
+
+def default_kernel_cache_dir() -> Path:
+    """Where the compiled C element kernel is kept (:mod:`femshell.shell.fast_element`):
+    ``$FEMSHELL_KERNEL_CACHE`` if set, else ``femshell-kernels`` in the user's cache directory."""
+    return _user_cache_dir("FEMSHELL_KERNEL_CACHE", "femshell-kernels")
 
 
 def configure(*, blas_threads: int | None = 1, threads: int | None = None,

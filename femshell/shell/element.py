@@ -30,6 +30,10 @@ with :math:`\nabla^2 a_{ij}` constant and three 13×13 Hessians of
 This is ``jax.hessian(element_energy)`` up to rounding, at a fraction of the cost; elements whose
 three edges are interior use a kernel without the clamped/symmetry branches
 (:meth:`Kernels.hessian_grouped`).
+
+**Hessian kernels.** :meth:`Kernels.evaluate` computes the Hessians by the same split in compiled
+C (:mod:`femshell.shell.fast_element`, ``hessian_kernel="compiled"``, the default; JAX where no C
+compiler works) or by the JAX code above (``"jax"``, the reference the tests check the other against).
 """
 
 from __future__ import annotations
@@ -44,6 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..config import element_threads
+from . import fast_element
 from .bending import (CLAMPED, EDGE_UNKNOWN, FREE, INTERIOR, SYMMETRY, MidEdgeTangent, edge_q,  # noqa: F401
                       fundamental_forms, mid_edge_normals, turned_normal)
 from .materials import MEMBRANE_LAWS, NeoHookean, StVenantKirchhoff, membrane_law, norm2  # noqa: F401
@@ -89,6 +94,16 @@ def element_energy(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, 
 
 
 _AXES = (0, 0, 0, 0, 0, None, None, 0, 0, 0)
+
+#: how element Hessians are computed: compiled C (the default) or JAX (the reference)
+HESSIAN_KERNELS = ("compiled", "jax")
+
+
+def check_hessian_kernel(name):
+    """``name`` if it is one of :data:`HESSIAN_KERNELS`, else a ValueError naming them."""
+    if name not in HESSIAN_KERNELS:
+        raise ValueError(f"hessian_kernel must be one of {HESSIAN_KERNELS}, got {name!r}")
+    return name
 CHUNK_SMALL, CHUNK = 256, 4096
 CHUNK_HESSIAN = 256
 
@@ -250,10 +265,11 @@ class Kernels:
         self.hessian_interior = _batched(_split_hessian(True, law_type, formulation), CHUNK_HESSIAN, CHUNK_HESSIAN)
         self.forms = _batched(functools.partial(_forms, formulation=formulation))
 
-    def evaluate(self, *args, gradient=False, hessian=False, interior=None):
+    def evaluate(self, *args, gradient=False, hessian=False, interior=None, hessian_kernel="compiled"):
         """The one entry point: element energies (m,), with their gradients (m, 21) if ``gradient``
         and Hessians (m, 21, 21) if ``hessian`` (``interior``: the elements whose three edges are
-        interior, :meth:`hessian_grouped`). Returns (energies, gradients or None, Hessians or None);
+        interior, :meth:`hessian_grouped`; ``hessian_kernel``: one of :data:`HESSIAN_KERNELS`, compiled
+        only for the mid-edge formulation). Returns (energies, gradients or None, Hessians or None);
         energies are None when only the Hessian is asked for (it does not need them).
         """
         energies = gradients = hessians = None
@@ -261,7 +277,11 @@ class Kernels:
             energies, gradients = self.value_and_grad(*args)
         elif not hessian:
             energies = self.energy(*args)
-        if hessian:
+        if (hessian and check_hessian_kernel(hessian_kernel) == "compiled" and self.formulation is MidEdgeTangent
+                and fast_element.library() is not None):
+            threads = element_threads()
+            hessians = fast_element.hessians(self.law, *args, executor=_executor(threads) if threads > 1 else None)
+        elif hessian:
             interior = (np.asarray(args[7]) == INTERIOR).all(axis=1) if interior is None else interior
             hessians = self.hessian_grouped(interior, *args)
         return energies, gradients, hessians

@@ -109,10 +109,14 @@ class ShellModel:
         Pin six position components (statically determinate) so that a free
         shell has no rigid-body null space. ``None``: only when no boundary
         condition fixes any position.
+    hessian_kernel : "compiled" or "jax"
+        How the element Hessians are computed (:data:`~femshell.shell.element.HESSIAN_KERNELS`):
+        compiled C (JAX where no C compiler works), or the JAX reference; the same to rounding. Settable later as the
+        attribute of the same name.
     """
 
     def __init__(self, mesh, material: Material, rest: RestState, boundary_conditions=(), loads=(),
-                 remove_rigid_modes=None):
+                 remove_rigid_modes=None, hessian_kernel="compiled"):
         if not all(hasattr(mesh, k) for k in ("points", "triangles", "topology")):
             raise TypeError(f"mesh must be a SurfaceMesh (see femshell.mesh), got {type(mesh).__name__}")
         for name, value, kind in (("material", material, Material), ("rest", rest, RestState)):
@@ -128,6 +132,7 @@ class ShellModel:
                                     f"{'boundary condition' if method == 'apply' else 'load'}")
         self.mesh = mesh
         self.material = material
+        self.hessian_kernel = el.check_hessian_kernel(hessian_kernel)
         self.topology = t = mesh.topology
         n, ne, m = mesh.n_vertices, t.n_edges, mesh.n_triangles
         if len(rest.metric) != m:
@@ -341,7 +346,8 @@ class ShellModel:
         """∂²Π/∂u² as a CSR matrix over the free unknowns (symmetric, possibly indefinite)."""
         q = self.full(u)
         interior = (self.edge_kind_el == el.INTERIOR).all(axis=1)  # these skip the boundary branches
-        _, _, h = self._kernels.evaluate(*self._element_args(q), hessian=True, interior=interior)
+        _, _, h = self._kernels.evaluate(*self._element_args(q), hessian=True, interior=interior,
+                                         hessian_kernel=self.hessian_kernel)
         K = self.assembler.matrix(np.asarray(h))
         own_pattern = True
         for i, load in enumerate(self.loads):
