@@ -1,5 +1,6 @@
-"""The ``femshell`` command line: ``mesh``, ``validate``, ``run``, ``sweep``, ``scenes``, ``render``; exit code 0 done,
-1 failed, 2 bad input (one clear line per problem, no traceback), 130 interrupted."""
+"""The ``femshell`` command line: ``mesh``, ``validate``, ``run``, ``sweep``, ``scenes``, ``render``,
+``warmup``; exit code 0 done, 1 failed, 2 bad input (one clear line per problem, no traceback),
+130 interrupted."""
 
 from __future__ import annotations
 
@@ -146,7 +147,8 @@ def _parser():
                     "  run       run a scene (a .toml file or an embedded scene name)\n"
                     "  sweep     run a scene over a grid of parameter values on Dask\n"
                     "  scenes    list the embedded scenes\n"
-                    "  render    pictures and a movie of a finished run",
+                    "  render    pictures and a movie of a finished run\n"
+                    "  warmup    compile the element kernels once, ahead of the first run",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
@@ -178,6 +180,9 @@ def _parser():
     d.add_argument("--fps", type=_positive("--fps"), default=5.0, help="movie frames per second (at most 50 for a GIF)")
     d.add_argument("--cmap", default="viridis", help="matplotlib colour map")
     d.add_argument("--no-movie", action="store_true", help="pictures only")
+    sub.add_parser("warmup", help="compile the element kernels once (kept on disk for later runs)",
+                   description="Compile the element kernels (C and JAX) into the user's cache directories, so "
+                               "that no run pays for compiling them (about 20-60 s once).")
     p.subcommands = sub.choices      # name -> parser, for their usage errors
     return p
 
@@ -370,6 +375,18 @@ def _cmd_render(args):
     return 0
 
 
+def _cmd_warmup(args):
+    from .config import default_jax_cache_dir, default_kernel_cache_dir
+    from .shell.warmup import warm_up      # deferred: jax (see _cmd_mesh)
+
+    print("compiling the element kernels (once: later runs load them from the cache)...", flush=True)
+    for what, seconds in warm_up():
+        print(f"  {what}: {seconds:.1f} s", flush=True)
+    jax_dir = os.environ.get("JAX_COMPILATION_CACHE_DIR") or default_jax_cache_dir()
+    print(f"kept in {jax_dir} (JAX) and {default_kernel_cache_dir()} (C)")
+    return 0
+
+
 def main(argv=None):
     configure()          # process settings (BLAS threads, JAX cache): femshell.config
     parser = _parser()
@@ -380,7 +397,7 @@ def main(argv=None):
         parser.print_help()
         return 0
     handler = {"mesh": _cmd_mesh, "validate": _cmd_validate, "run": _cmd_run, "sweep": _cmd_sweep,
-               "scenes": _cmd_scenes, "render": _cmd_render}[args.command]
+               "scenes": _cmd_scenes, "render": _cmd_render, "warmup": _cmd_warmup}[args.command]
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning

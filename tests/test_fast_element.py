@@ -111,3 +111,18 @@ def test_without_a_compiler_the_jax_path_serves(square, monkeypatch, tmp_path):
     np.testing.assert_array_equal(K.data, model.hessian(u).data)
     with pytest.raises(RuntimeError, match="compiled element kernel is unavailable: no compiler"):
         fast_element.hessians("svk", *model._element_args(model.full(u)))
+
+
+def test_warmup_command_builds_the_kernels_into_the_caches(monkeypatch, tmp_path, capsys):
+    import threading
+
+    from femshell.cli import main
+
+    monkeypatch.setenv("FEMSHELL_KERNEL_CACHE", str(tmp_path / "kernels"))
+    monkeypatch.setattr(fast_element, "_state", {"lib": None, "error": None, "lock": threading.Lock()})
+    assert main(["warmup"]) == 0
+    out = capsys.readouterr().out
+    assert "C element Hessian:" in out and "svk law" in out and "neo-hookean law" in out
+    assert str(tmp_path / "kernels") in out
+    built = list((tmp_path / "kernels").glob("element-hessian-*.so"))
+    assert built == [fast_element.library_path()[0]]
