@@ -21,6 +21,12 @@ class SparseAssembler:
     free : (n,) bool array
         Which global unknowns are kept; entries touching a fixed unknown are
         dropped and the result is indexed by free unknowns only.
+    nodes : (element_nodes (m, kn), slot (k,), dof_node (n,)) or None
+        The unknowns grouped into nodes (a vertex's three positions, an edge's unknown): entry
+        ``s`` of an element is an unknown of its node ``element_nodes[e, slot[s]]``, a node's
+        unknowns are numbered consecutively and every element holds all of a node's unknowns.
+        The pattern is then found among the m kn² node pairs (:func:`_blocked_pattern`) instead
+        of the m k² entries: the same result in a fraction of the time.
 
     Example
     -------
@@ -32,7 +38,7 @@ class SparseAssembler:
            [0., 1., 1.]])
     """
 
-    def __init__(self, dofs: np.ndarray, free: np.ndarray):
+    def __init__(self, dofs: np.ndarray, free: np.ndarray, nodes=None):
         dofs = np.asarray(dofs, np.int64)
         free = np.asarray(free, bool)
         m, k = dofs.shape
@@ -43,7 +49,10 @@ class SparseAssembler:
         local = self.free_index[dofs]                       # (m, k), -1 where fixed
         self._vec_keep = local.ravel() >= 0
         self._vec_target = local.ravel()[self._vec_keep]
-        self.indptr, self.indices, self._mat_target, self.nnz = _matrix_pattern(local, self.n)
+        if nodes is None:
+            self.indptr, self.indices, self._mat_target, self.nnz = _matrix_pattern(local, self.n)
+        else:
+            self.indptr, self.indices, self._mat_target, self.nnz = _blocked_pattern(dofs, self.free_index, *nodes)
 
     def slots_of(self, other: "SparseAssembler"):
         """Positions in this pattern's CSR data of the entries of ``other``'s pattern (same unknowns), or
@@ -105,3 +114,54 @@ def _matrix_pattern(local: np.ndarray, n: int):
     target[grouped.data.astype(np.int64)] = ordinal - 1
     indptr = np.concatenate([[0], ordinal])[start]
     return indptr, c[first], target, nnz
+
+
+def _ragged_gather(starts, lengths):
+    """Indices of the concatenated ranges [starts[i], starts[i] + lengths[i])."""
+    lengths = np.asarray(lengths, np.int64)
+    total = int(lengths.sum())
+    offsets = np.zeros(len(lengths), np.int64)
+    np.cumsum(lengths[:-1], out=offsets[1:])
+    return np.repeat(np.asarray(starts, np.int64) - offsets, lengths) + np.arange(total)
+
+
+def _blocked_pattern(dofs, free_index, element_nodes, slot, dof_node):
+    """:func:`_matrix_pattern`'s four results from the node-level pattern (see SparseAssembler's ``nodes``).
+
+    The node pairs' pattern and positions come from :func:`_matrix_pattern` on the m kn² node pairs; a
+    free unknown's row holds the free unknowns of the nodes its node shares an element with, in node
+    order (which is the unknowns' order), so an entry (e, a, b) sits at
+    row start of a + offset of node(b) in node(a)'s row + rank of b among its node's free unknowns.
+    """
+    m, k = dofs.shape
+    n_nodes = int(dof_node.max()) + 1
+    kn = element_nodes.shape[1]
+    n_indptr, n_indices, n_target, _ = _matrix_pattern(np.asarray(element_nodes, np.int64), n_nodes)
+    is_free = free_index >= 0
+    n_free = np.bincount(dof_node[is_free], minlength=n_nodes)             # free unknowns per node
+    # rank of each unknown among its node's free unknowns (nodes' unknowns are consecutive)
+    first_dof = np.searchsorted(dof_node, np.arange(n_nodes))
+    free_before = np.concatenate([[0], np.cumsum(is_free)])
+    rank = free_before[np.arange(len(dof_node))] - free_before[first_dof[dof_node]]
+    width = n_free[n_indices]                                               # columns each node pair gives
+    before = np.cumsum(width) - width
+    row_of_pair = np.repeat(np.arange(n_nodes), np.diff(n_indptr))
+    pair_offset = before - before[n_indptr[:-1]][row_of_pair]               # offset of node j in node i's row
+    row_length = np.bincount(row_of_pair, weights=width, minlength=n_nodes).astype(np.int64)
+    free_dofs = np.flatnonzero(is_free)
+    node_of_row = dof_node[free_dofs]
+    indptr = np.zeros(len(free_dofs) + 1, np.int64)
+    np.cumsum(row_length[node_of_row], out=indptr[1:])
+    # the columns of node i's rows: the free unknowns (free index order) of its row's nodes
+    columns = _ragged_gather(free_before[first_dof[n_indices]], width)       # a node's free unknowns are consecutive
+    indices = columns[_ragged_gather(before[n_indptr[:-1]][node_of_row], row_length[node_of_row])]
+    nnz = int(indptr[-1])
+    # an entry touching a fixed unknown gets a row start and a rank of nnz: past nnz, clipped to it
+    row_start = np.where(is_free, np.concatenate([indptr, [nnz]])[free_index], nnz)
+    rank = np.where(is_free, rank, nnz)
+    node_pair = pair_offset[n_target].reshape(m, kn * kn)                  # offsets per element node pair
+    target = node_pair[:, (slot[:, None] * kn + slot[None, :]).ravel()].reshape(m, k, k)
+    target += row_start[dofs][:, :, None]
+    target += rank[dofs][:, None, :]
+    np.minimum(target, nnz, out=target)
+    return indptr, indices.astype(np.int32 if len(free_dofs) < 2**31 else np.int64), target.ravel(), nnz

@@ -191,7 +191,11 @@ class ShellModel:
         self.loads = list(loads)
         for load in self.loads:
             load.setup(self)
-        self.assembler = SparseAssembler(self.element_dofs, self.free)
+        # the unknowns by node (a vertex's three positions, an edge's unknown): the pattern from node pairs
+        element_nodes = np.concatenate([t.triangles, opp, n + t.face_edges], axis=1)
+        slot = np.concatenate([np.repeat(np.arange(6), 3), 6 + np.arange(3)])
+        dof_node = np.concatenate([np.repeat(np.arange(n), 3), n + np.arange(ne)])
+        self.assembler = SparseAssembler(self.element_dofs, self.free, nodes=(element_nodes, slot, dof_node))
         self._load_assemblers = {}
 
     # ---- rest state -------------------------------------------------------------------------
