@@ -13,7 +13,9 @@ Pieces (the arithmetic of :mod:`femshell.shell.bending` and :mod:`femshell.shell
 * ``q_<kind>(u, ...)``: :math:`q_k = s_k h_k` of one edge (:func:`~femshell.shell.bending.edge_q`)
   in the 10 unknowns u = (b − a, c − a, p − a, θ) relative to the edge's first vertex a (b its
   second vertex, c the element's third, p the vertex across; q is translation invariant), for
-  the edge kinds interior, free, clamped and symmetry;
+  the edge kinds interior, free, clamped and symmetry; the conormal times the altitude is written
+  :math:`b \times N / |b|^2` with :math:`N = b \times c` (equal to bending's
+  :math:`(b \times n_f / |b|)(|N| / |b|)`, with two square roots fewer);
 * ``w_<law>(z, ...)``: the element energy as a function of z = (a11, a12, a22, q0, q1, q2)
   (:func:`~femshell.shell.element.energy_of_forms`).
 
@@ -121,11 +123,9 @@ def edge_q(tape, kind):
     u = tape.inputs
     b, c, p, theta = u[0:3], u[3:6], u[6:9], u[9]
     P = tape.params
-    nf = unit(cross(b, c))                         # a = 0: the face normal from the edge's own corner
+    N = cross(b, c)                                # a = 0: the face normal (times twice the area)
+    nf = unit(N)
     t = [P["sign"] * x for x in unit(b)]
-    twice_area = sqrt(dot(b, b) * dot(c, c) - dot(b, c) * dot(b, c))
-    length = sqrt(dot(b, b))
-    conormal = [x / length for x in cross(b, nf)]
     if kind in ("interior", "free"):
         m = unit([x + y for x, y in zip(nf, unit(cross([-x for x in b], sub(p, b))))]) if kind == "interior" else nf
         tm = cross(t, m)
@@ -135,7 +135,8 @@ def edge_q(tape, kind):
         ne = [P["d0"], P["d1"], P["d2"]]
     else:                                            # symmetry: in the plane of normal d, across the edge
         ne = [P["flip"] * x for x in unit(cross([P["d0"], P["d1"], P["d2"]], t))]
-    return dot(ne, conormal) * (twice_area / length)
+    # conormal times altitude: (b × n_f / |b|) (|N| / |b|) = b × N / |b|²
+    return dot(ne, cross(b, N)) / dot(b, b)
 
 
 def energy_of_forms(tape, law):
