@@ -62,18 +62,16 @@ def element_args(model, u):
     return args, interior
 
 
+def element_hessians(model, u, kernel):
+    """A function computing the element Hessians of state u by ``kernel`` ("jax" or "compiled"), on the
+    threads the model uses (:func:`femshell.config.element_threads`)."""
+    args, interior = element_args(model, u)
+    return lambda: model._kernels.evaluate(*args, hessian=True, interior=interior, hessian_kernel=kernel)[2]
+
+
 def hessian_section(model, u):
     """Element Hessians and the assembled Hessian, JAX against compiled C."""
-    from femshell.shell import fast_element
-    args, interior = element_args(model, u)
-    kern = model._kernels
-
-    def old():
-        return kern.hessian_grouped(interior, *args)
-
-    def new():
-        return fast_element.hessians(model.material.law, *args)
-
+    old, new = element_hessians(model, u, "jax"), element_hessians(model, u, "compiled")
     old(), new()                                    # compile or load from the caches
     rows = [("element Hessian", measure(old), measure(new))]
 
@@ -138,25 +136,22 @@ def setup_section(n):
 
 
 def scaling_section(sizes):
-    """Element Hessian per size, old and new, and the fitted exponents."""
-    from femshell.shell import fast_element
+    """Prints the element Hessian per size, old and new, and the fitted exponents."""
     rows, times = [], {"old": [], "new": []}
     verts = []
     for n in sizes:
         model, u = grown_sphere(n)
-        args, interior = element_args(model, u)
-        kern = model._kernels
-        old = measure(lambda: kern.hessian_grouped(interior, *args), repeat=1 if n > 30000 else 2)
-        new = measure(lambda: fast_element.hessians(model.material.law, *args))
+        old = measure(element_hessians(model, u, "jax"), repeat=1 if n > 30000 else 2)
+        new = measure(element_hessians(model, u, "compiled"))
         verts.append(model.mesh.n_vertices)
         times["old"].append(old[0])
         times["new"].append(new[0])
         rows.append((f"element Hessian {model.mesh.n_vertices}", old, new))
-        model = args = None
+        model = None
+    print_rows(rows)
     if len(sizes) > 1:
         fit = {k: np.polyfit(np.log(verts), np.log(v), 1)[0] for k, v in times.items()}
         print(f"fitted exponent (CPU time ∝ vertices^p): old p = {fit['old']:.2f}, new p = {fit['new']:.2f}")
-    return rows
 
 
 def print_rows(rows):
@@ -190,7 +185,7 @@ def main(argv=None):
     if args.setup:
         print_rows(setup_section(args.vertices))
     if sizes:
-        print_rows(scaling_section(sizes))
+        scaling_section(sizes)
     print(f"load average {os.getloadavg()[0]:.2f}")
 
 
