@@ -195,7 +195,8 @@ class ShellModel:
         element_nodes = np.concatenate([t.triangles, opp, n + t.face_edges], axis=1)
         slot = np.concatenate([np.repeat(np.arange(6), 3), 6 + np.arange(3)])
         dof_node = np.concatenate([np.repeat(np.arange(n), 3), n + np.arange(ne)])
-        self.assembler = SparseAssembler(self.element_dofs, self.free, nodes=(element_nodes, slot, dof_node))
+        self.assembler_nodes = (element_nodes, slot, dof_node)
+        self.assembler = SparseAssembler(self.element_dofs, self.free, nodes=self.assembler_nodes)
         self._load_assemblers = {}
 
     # ---- rest state -------------------------------------------------------------------------

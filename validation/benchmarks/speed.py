@@ -8,9 +8,11 @@ printed before and after: on a shared machine quote CPU seconds and ratios, not 
 
 * element Hessian: the (m, 21, 21) element Hessians, JAX (grouped split Hessian) against the
   compiled C kernel (:mod:`femshell.shell.fast_element`); ``Hessian assembled``: plus the scatter
-  into the CSR matrix (``ShellModel.hessian``);
+  into the CSR matrix (``ShellModel.hessian``); ``sparsity pattern``: the CSR pattern and scatter
+  positions from all m k² element entries against from the m kn² node pairs;
 * set-up cold and warm (``--setup``): a fresh process importing femshell, meshing the sphere (gmsh),
-  building the model (sparsity pattern) and evaluating energy, gradient and Hessian once; cold with
+  building the model (sparsity pattern; old: from the element entries) and evaluating energy,
+  gradient and Hessian once; cold with
   empty JAX and kernel caches, warm from the ones the cold run left (with the split into mesh,
   model and first evaluation);
 * ``--scaling [N ...]``: the element Hessian at 6k/12k/25k/50k vertices and the exponent p of
@@ -40,6 +42,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from shell_newton import grown_sphere  # noqa: E402
+
+from femshell.shell.assembly import SparseAssembler  # noqa: E402
 
 #: the scaling sizes of issue 63
 SCALING_SIZES = (6000, 12000, 25000, 50000)
@@ -81,6 +85,9 @@ def hessian_section(model, u):
 
     rows.append(("Hessian assembled", assembled("jax"), assembled("compiled")))
     model.hessian_kernel = "compiled"
+    rows.append(("sparsity pattern", measure(lambda: SparseAssembler(model.element_dofs, model.free), repeat=1),
+                 measure(lambda: SparseAssembler(model.element_dofs, model.free, nodes=model.assembler_nodes),
+                         repeat=1)))
     return rows
 
 
@@ -96,6 +103,9 @@ femshell.configure()
 from femshell.scene import build
 from femshell.shell import Material, ShellModel, flat_rest_state
 n, kernel = int(sys.argv[1]), sys.argv[2]
+if kernel == "jax":             # today's path: also the sparsity pattern from all m k^2 entries
+    from femshell.shell import assembly, model as shell_model
+    shell_model.SparseAssembler = lambda dofs, free, nodes=None: assembly.SparseAssembler(dofs, free)
 scene = build.load_scene("sphere-spots", [f"mesh.n_vertices={n}"])
 c1, w1 = cpu(), time.perf_counter()
 mesh = build.make_mesh(scene)
