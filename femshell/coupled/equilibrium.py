@@ -50,7 +50,7 @@ class Equilibria:
         st = self.stepping
         return minimize(self.shell, u_start, stable=True, rtol=st.newton_rtol, atol=self._atol,
                         max_iter=int(max_iter or st.newton_max_iter), residual_scale=residual_scale,
-                        factorizers=self._factorizers, quasi_newton=st.quasi_newton,
+                        factorizers=self._factorizers, quasi_newton=st.quasi_newton, linear_solver=st.linear_solver,
                         stall=(st.newton_stall or None) if stall else None, log=None)
 
     def _snap_applies(self, failed: NewtonError, ds: float) -> bool:

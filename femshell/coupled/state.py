@@ -31,7 +31,7 @@ class Checkpointing:
         the next step takes), error_ratio (the last step's local error over ``error_tol``, the
         memory of the error controller; −1: none), stationary_count, n_rejected, n_snaps, newton_total,
         last_newton_iterations, last_ds, n_vertices, n_free, held_cholesky (whether the last
-        state's Hessian is held as a Cholesky factor for the quasi-Newton start of the next step:
+        state's Hessian is held as a Cholesky factor for the quasi-Newton start and the Krylov steps of the next step:
         a resumed loop factorises it again, so that it continues exactly as the uninterrupted
         one), pattern_anchor_t, pattern_anchor_c and pattern_anchor_points (when and with which c
         and shape the pattern last changed, for ``stationary_pattern_time``; left out when it is
@@ -129,7 +129,7 @@ class Checkpointing:
         self._update_curvature()
         for f in self._factorizers:
             f.free()
-        if state.get("held_cholesky", 0) and self.stepping.quasi_newton:
+        if state.get("held_cholesky", 0) and (self.stepping.quasi_newton or self.stepping.linear_solver == "krylov"):
             try:
                 self._factorizers[0](self.shell.hessian(self.u))
             except LinearSolverError:

@@ -16,6 +16,7 @@ import numpy as np
 
 from .._checks import finite as _finite, integer as _integer
 from ..solvers.linear import BACKENDS
+from ..solvers.newton import LINEAR_SOLVERS
 from .parameters import store_numbers
 
 __all__ = ["TimeStepping", "SOURCE_RULES", "STEP_CONTROLS", "feedback_gain", "feedback_step_limit",
@@ -190,6 +191,10 @@ class TimeStepping:
     newton_rtol, newton_atol_strain : convergence |∇Π| ≤ rtol · |∇Π(u_start)| + atol, with
         atol = newton_atol_strain × (the residual of a uniform unit strain).
     newton_max_iter, newton_backend : passed to :func:`~femshell.solvers.newton.minimize`.
+    linear_solver : Newton's steps, ``minimize(linear_solver=...)``: "krylov" preconditions them by
+        the factorisation held from the last converged state (or a later iterate) and refactorises
+        only when that does not serve; "direct" factorises every iterate's Hessian. Either way each
+        accepted state's stability comes from a factorisation of its own Hessian.
     quasi_newton : each Newton solve first takes up to this many quasi-Newton iterations on
         the factorisation of the last converged state's Hessian (its stability check), which
         the loop keeps (``minimize(quasi_newton=...)``; after a cut, the factorisation the
@@ -253,6 +258,7 @@ class TimeStepping:
     newton_atol_strain: float = 1e-10
     newton_max_iter: int = 40
     newton_backend: str = "auto"
+    linear_solver: str = "krylov"
     quasi_newton: int = 12
     ramp_ds: float = 0.1
     predictor: bool = True
@@ -286,6 +292,8 @@ class TimeStepping:
         _integer("newton_max_iter", self.newton_max_iter, 1)
         _integer("quasi_newton", self.quasi_newton, 0)
         _integer("newton_stall", self.newton_stall, 0)
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {self.linear_solver!r}")
         if self.newton_backend not in BACKENDS:
             raise ValueError(f"newton_backend must be one of {BACKENDS}, got {self.newton_backend!r}")
         _finite("ramp_ds", self.ramp_ds, 0.0, lo_open=True, text="(0, inf)")

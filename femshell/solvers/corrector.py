@@ -9,6 +9,13 @@ Jacobian K = ∂²Π/∂u² and g_λ = ∂r/∂λ are callables of the problem; 
 The bordered system [[K, g_λ], [cᵀ, d]] [δu; δλ] = [b; β] is solved by block elimination on one
 factorisation of K (K x₁ = b, K x₂ = −g_λ, δλ = (β − cᵀx₁)/(d + cᵀx₂)), with the full (n+1)
 matrix (SuperLU) as fall-back. Step failures raise :class:`_StepFailure`; the caller halves ds.
+
+The corrector refactorises only when it pays (``linear_solver="krylov"``, the default): its
+iterations solve K x₁ = b and K x₂ = −g_λ by Krylov iterations preconditioned by the factorisation
+held from the last point or iteration (:class:`~femshell.solvers.krylov.HeldFactor`, CG or GMRES by
+its inertia) and factorise K only when those do not serve. :meth:`_Engine.finish` always factorises
+a point's own Hessian (unless the corrector's last, negligible correction was made on it), so each
+accepted point's inertia, and its stability, is exact.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .krylov import HeldFactor
 from .linear import LinearSolverError, factorize
 
 #: up to this many unknowns the smallest eigenvalues come from a dense eigensolver
@@ -30,6 +38,12 @@ DENSE_EIG_LIMIT = 50
 SHIFT = 1e-10
 #: relative accuracy asked of the Lanczos eigenvalues (shift-invert Ritz residuals)
 EIG_TOL = 1e-12
+#: relative residual of the corrector's Krylov solves (an inexact Newton step: its error is
+#: corrected by the next iteration, and the corrector converges on the true residual)
+CORRECTOR_KRYLOV_RTOL = 1e-6
+#: values of ``_Engine(linear_solver=...)``, and the one taken when none is given
+LINEAR_SOLVERS = ("krylov", "direct")
+DEFAULT_LINEAR_SOLVER = "krylov"
 
 
 class _StepFailure(Exception):
@@ -66,7 +80,7 @@ class _Engine:
     """Residuals, bordered solves, corrector and point evaluation for one problem and norm."""
 
     def __init__(self, problem, weights, parameter_scale, *, backend, rtol, atol, xtol, max_iter, fd_step,
-                 n_eigs, log):
+                 n_eigs, log, linear_solver=None):
         self.p = problem
         self.lam_scale = float(parameter_scale)
         self.w = np.asarray(weights, float)
@@ -81,7 +95,12 @@ class _Engine:
         self.rscale = 0.0
         self._lam = None
         self._fac = None
-        self.counts = {"gradient": 0, "hessian": 0, "factorize": 0, "bordered_full": 0, "eigen": 0}
+        linear_solver = linear_solver or DEFAULT_LINEAR_SOLVER
+        if linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
+        self._held = HeldFactor(rtol=CORRECTOR_KRYLOV_RTOL) if linear_solver == "krylov" else None
+        self.counts = {"gradient": 0, "hessian": 0, "factorize": 0, "bordered_full": 0, "eigen": 0,
+                       "krylov_solves": 0, "krylov_iterations": 0}
 
     # ---- problem access
     def diagnose(self, P):
@@ -141,10 +160,33 @@ class _Engine:
         self.counts["factorize"] += 1
         try:
             self._fac = factorize(K, kind="symmetric_indefinite", backend=self.backend, reuse=self._fac)
-            return self._fac
         except LinearSolverError:
             self.release()
+        if self._held is not None:
+            self._held.hold(self._fac)
+        return self._fac
+
+    def _krylov_bordered(self, K, gl, c, d, rhs_u, rhs_l):
+        """The bordered solve by block elimination on Krylov solves with the held factorisation, or None
+        when it does not serve (then K is factorised)."""
+        held = self._held
+        if held is None or not held.usable(self.n):
             return None
+        before = (held.solves, held.iterations)
+        try:
+            x2 = held.solve(K, -gl)
+            x1 = None if x2 is None else (held.solve(K, rhs_u) if np.any(rhs_u) else np.zeros(self.n))
+        finally:
+            self.counts["krylov_solves"] += held.solves - before[0]
+            self.counts["krylov_iterations"] += held.iterations - before[1]
+        if x1 is None:
+            return None
+        cvec = c if np.ndim(c) else np.zeros(self.n)
+        schur = d + float(cvec @ x2)
+        if not (np.isfinite(schur) and abs(schur) > 1e-12 * (abs(d) + np.linalg.norm(cvec) * np.linalg.norm(x2))):
+            return None
+        dl = (rhs_l - float(cvec @ x1)) / schur
+        return x1 + dl * x2, dl
 
     # ---- norm
     def dot(self, au, al, bu, bl):
@@ -275,11 +317,14 @@ class _Engine:
         last_step = math.inf
         res0 = None
         K = fac = None
+        res_krylov = None       # |r| before a step made on Krylov solves, to judge its contraction
         for it in range(self.max_iter + 1):
             r = self.residual(u, lam)
             res = float(np.linalg.norm(r))
             if not np.isfinite(res):
                 raise _StepFailure(f"non-finite residual at corrector iteration {it}")
+            if res_krylov is not None:
+                self._held.judge(res_krylov, res)
             if res0 is None:
                 res0 = res
                 scale = max(self.rscale, res)
@@ -292,12 +337,16 @@ class _Engine:
                 raise _StepFailure(f"corrector diverges (|r| {res0:.2e} -> {res:.2e})")
             gl = self.dlam(u, lam)
             K = self.hessian(u, lam)
-            fac = self.factor(K)
             if lam_fixed is not None:
                 N = lam - lam_fixed
             else:
                 N = self.dot(t[0], t[1], u - u_p, lam - lam_p)
-            du, dl = self.solve_bordered(K, fac, gl, c, d, -r, -N)
+            step = self._krylov_bordered(K, gl, c, d, -r, -N)
+            res_krylov = None if step is None else res
+            if step is None:
+                fac = self.factor(K)
+                step = self.solve_bordered(K, fac, gl, c, d, -r, -N)
+            du, dl = step
             if lam_fixed is not None:
                 dl = 0.0
             u = u + du
@@ -310,7 +359,9 @@ class _Engine:
                                    f"(distance {self.norm(u - u_p, lam - lam_p):.3g} > {max_dist:.3g})")
         P = _Point(u, lam, iterations=it, predictor_residual=res0 if update_scale else 0.0)
         if K is not None and last_step <= self.xtol:
-            P.K, P.fac = K, fac  # the last Hessian was taken a negligible distance away
+            # the last Hessian was taken a negligible distance away: the point's own (factorised now if
+            # the last step was made on Krylov solves, for its exact inertia)
+            P.K, P.fac = K, (fac if res_krylov is None else self.factor(K))
         return P
 
     def finish(self, P, ref=None, direction=1.0, n_eigs=None, vectors=False):

@@ -25,10 +25,21 @@ may prevent an equilibrium (or None), appended to the error of a failed solve. I
    has negative eigenvalues is a saddle: step along the eigenvector of the most negative
    eigenvalue (the sign that lowers Π) and continue, so the result is a local minimum.
 
-In a sequence of solves (time or load stepping) the caller can keep the factorisations
-(``factorizers``) and start each solve with quasi-Newton iterations on the last one
-(``quasi_newton``, :func:`lagged_quasi_newton`): the converged point's own Hessian is
-then the only one assembled and factorised, as the stability check.
+Refactorising only when it pays (``linear_solver="krylov"``, the default; theory §2.6): a
+step's system K d = −∇Π is solved by CG or GMRES preconditioned by the last factorisation held
+(of an earlier iterate's Hessian, or of the previous solve's converged state), and K is
+factorised afresh only when that does not serve: the Krylov solve does not converge within
+about a factorisation's cost, is no descent direction, the line search refuses its step, or the
+step reduced the residual by less than half (:class:`~femshell.solvers.krylov.HeldFactor`).
+The convergence test, and with it the stability check, always factorises the point's own
+Hessian, so its inertia, and every ``stable`` result, is exact; a solve of k iterations started
+from a held factorisation costs one factorisation instead of k + 1. ``linear_solver="direct"``
+factorises every iterate's Hessian.
+
+In a sequence of solves (time or load stepping) the caller keeps the factorisations
+(``factorizers``): the held one then preconditions the next solve's first steps, and it can
+also start each solve with quasi-Newton iterations on it (``quasi_newton``,
+:func:`lagged_quasi_newton`), which do not even assemble a Hessian.
 
 Example
 -------
@@ -53,6 +64,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._checks import finite, integer
+from .krylov import HeldFactor
 from .linear import LinearSolverError, Refactorizer, smallest_eigenvalues
 
 
@@ -80,6 +92,11 @@ class NewtonResult:
     times: dict = field(default_factory=dict)
     #: iterations of the quasi-Newton phase on a held factorisation (``minimize(quasi_newton=...)``)
     quasi_newton_iterations: int = 0
+    #: numerical factorisations done by this solve (Hessians, failed Cholesky attempts and shifted ones included)
+    factorizations: int = 0
+    #: Krylov solves on a held factorisation and their iterations (``linear_solver="krylov"``)
+    krylov_solves: int = 0
+    krylov_iterations: int = 0
 
     def summary(self) -> str:
         t = ", ".join(f"{k} {v:.2f}s" for k, v in self.times.items())
@@ -90,7 +107,7 @@ class NewtonResult:
 
 def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, residual_scale=None,
              backend="auto", max_step=None, factorizers=None, quasi_newton=0, stall=None,
-             log=print) -> NewtonResult:
+             linear_solver="krylov", log=print) -> NewtonResult:
     """Find an equilibrium (a local minimum if ``stable``) of ``problem`` from ``u0``.
 
     Parameters
@@ -118,6 +135,10 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
         is then creeping with shifted steps about a near-singular Hessian and would use all of
         ``max_iter``. A caller that can cut its step (a time stepping) gains from stopping
         early; None: never.
+    linear_solver : "krylov" | "direct"
+        "krylov": solve each step's system by CG or GMRES preconditioned by the last factorisation
+        held, refactorising only when that does not serve (module docstring); "direct": factorise
+        every iterate's Hessian. Both test convergence, and stability, on a fresh factorisation.
     """
     u = check_unknowns(problem, u0)
     max_iter, quasi_newton = integer("max_iter", max_iter, 0), integer("quasi_newton", quasi_newton, 0)
@@ -127,6 +148,8 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
                                         and all(isinstance(f, Refactorizer) for f in factorizers)):
         raise ValueError(f"factorizers must be a pair of Refactorizer (or None), got {factorizers!r}")
     rtol, atol = finite("rtol", rtol, 0), finite("atol", atol, 0)
+    if linear_solver not in LINEAR_SOLVERS:
+        raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
     if residual_scale is not None:
         residual_scale = finite("residual_scale", residual_scale, 0)
     if max_step is not None and not (isinstance(max_step, (int, float, np.integer, np.floating))
@@ -143,11 +166,13 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     own = factorizers is None
     if own:
         factorizers = (Refactorizer(backend), Refactorizer(backend))
+    counted = sum(sum(f.counts.values()) for f in factorizers)
     try:
         qn_iterations = 0
         held = factorizers[0].last
         for f in factorizers:
             f.restart()
+        krylov = HeldFactor(held if held is not None and held._valid else None) if linear_solver == "krylov" else None
         if quasi_newton and held is not None and held.kind == "spd" and held.n == len(u):
             u, e, g, qn_iterations = lagged_quasi_newton(problem, u, e, g, held, rtol * residual_scale + atol,
                                                          quasi_newton, times, max_step=max_step)
@@ -155,16 +180,30 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
                 log(f"    quasi-Newton on the held factorisation: {qn_iterations} iterations, |r| {np.linalg.norm(g):.3e}")
         try:
             out = _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step,
-                            factorizers, log, stall, scale_from_start)
+                            factorizers, log, stall, scale_from_start, krylov)
         except NewtonError as exc:
             _explain(problem, exc)
+            if exc.result is not None:
+                _count(exc.result, factorizers, counted, krylov)
             raise
         out.quasi_newton_iterations = qn_iterations
-        return out
+        return _count(out, factorizers, counted, krylov)
     finally:
         if own:
             for f in factorizers:
                 f.free()
+
+
+#: values of ``minimize(linear_solver=...)``
+LINEAR_SOLVERS = ("krylov", "direct")
+
+
+def _count(result, factorizers, before, krylov):
+    """Put the solve's numbers of factorisations and Krylov solves into ``result``."""
+    result.factorizations = sum(sum(f.counts.values()) for f in factorizers) - before
+    if krylov is not None:
+        result.krylov_solves, result.krylov_iterations = krylov.solves, krylov.iterations
+    return result
 
 
 def _residual_scale(problem, u, g, residual_scale):
@@ -218,7 +257,7 @@ def _stalled(history, window) -> bool:
 
 
 def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, stable, max_step, factorizers, log,
-              stall=None, scale_from_start=False):
+              stall=None, scale_from_start=False, krylov=None):
     hessian_factors, shifted_factors = factorizers
     history = []
     n_neg = None
@@ -253,12 +292,12 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
             t = time.perf_counter()
             K = problem.hessian(u)
             times["assembly"] += time.perf_counter() - t
-            t = time.perf_counter()
-            fac = _factorize(K, hessian_factors)
-            times["factorize"] += time.perf_counter() - t
-            n_neg = fac.inertia[1] if fac.inertia is not None else None
             floor = _roundoff_residual(K, u)
-            if res <= max(rtol * residual_scale + atol, floor):
+            done = res <= max(rtol * residual_scale + atol, floor)
+            # the held factorisation preconditions the step; the converged point's own one checks it
+            d = _krylov_direction(krylov, K, g, times) if krylov is not None and not done and it < max_iter else None
+            fac, n_neg = (None, None) if d is not None else _fresh_factorization(K, hessian_factors, times, krylov)
+            if done:
                 if not stable or n_neg == 0:
                     break
                 if not _is_saddle(K, n_neg):       # the inertia unknown: the smallest eigenvalue is >= 0
@@ -273,6 +312,14 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                 raise NewtonError(f"Newton stalled at iteration {it}: |r| = {res:.3e} did not halve and the energy "
                                   f"fell by less than 1e-7 of it over the last {stall} iterations", _result(
                                       u, False, it, e, res, residual_scale, n_neg, history, times), stalled=True)
+            if d is not None:
+                un, en, gn, ok = _step(problem, u, e, g, d, max_step, times)
+                if ok:
+                    krylov.judge(res, np.linalg.norm(gn))
+                    u, e, g = un, en, gn
+                    continue
+                # the line search refused the Krylov step: Newton's own step on a fresh factorisation
+                fac, n_neg = _fresh_factorization(K, hessian_factors, times, krylov)
             u, e, g, ok, d, tau = _descend(problem, u, e, g, K, fac, n_neg, tau, shifted_factors, max_step, times,
                                            log)
             if not ok:
@@ -406,7 +453,28 @@ def _roundoff_residual(K, u) -> float:
     any iterate can reach, and without this floor Newton failed there.
     """
     data = K.data if sp.issparse(K) else np.asarray(K)
-    return float(np.finfo(float).eps * math.sqrt(len(u)) * np.abs(data).max() * np.abs(u).max()) if len(u) else 0.0
+    return float(np.finfo(float).eps * math.sqrt(len(u)) * np.abs(data).max(initial=0.0) * np.abs(u).max()) \
+        if len(u) else 0.0
+
+
+def _krylov_direction(krylov, K, g, times):
+    """The Krylov solution d of K d = −g on the held factorisation if it is a descent direction, else None."""
+    t = time.perf_counter()
+    d = krylov.solve(K, -g)
+    times["krylov"] = times.get("krylov", 0.0) + time.perf_counter() - t
+    if d is None or not g @ d < -1e-8 * np.linalg.norm(g) * np.linalg.norm(d):
+        return None
+    return d
+
+
+def _fresh_factorization(K, factorizer, times, krylov):
+    """(factorisation of K, its number of negative eigenvalues or None); held for the Krylov steps."""
+    t = time.perf_counter()
+    fac = _factorize(K, factorizer)
+    times["factorize"] += time.perf_counter() - t
+    if krylov is not None:
+        krylov.hold(fac)
+    return fac, (fac.inertia[1] if fac.inertia is not None else None)
 
 
 def _factorize(K, factorizer):
