@@ -66,8 +66,8 @@ def _mkl_environment():
 def mkl_reproducible_or_unloaded() -> bool:
     """Whether MKL is not loaded yet in this process, or was loaded in the reproducible mode."""
     st = _PARDISO_STATE
-    return not st["checked"] or (st["layer"] == "SEQUENTIAL"
-                                 and os.environ.get("MKL_CBWR", "").replace(" ", "").upper() == REPRODUCIBLE_ENV["MKL_CBWR"])
+    strict = os.environ.get("MKL_CBWR", "").replace(" ", "").upper() == REPRODUCIBLE_ENV["MKL_CBWR"]
+    return not st["checked"] or (st["layer"] == "SEQUENTIAL" and strict)
 
 
 def _pardiso_available() -> bool:
