@@ -28,8 +28,8 @@ may prevent an equilibrium (or None), appended to the error of a failed solve. I
 Refactorising only when it pays (``linear_solver="krylov"``, the default; theory §2.6): a
 step's system K d = −∇Π is solved by CG or GMRES preconditioned by the last factorisation held
 (of an earlier iterate's Hessian, or of the previous solve's converged state), and K is
-factorised afresh only when that does not serve: the Krylov solve does not converge within
-about a factorisation's cost, is no descent direction, the line search refuses its step, or the
+factorised afresh only when that does not serve: the Krylov solve does not converge within its
+iteration budget, is no descent direction, the line search refuses its step, or the
 step reduced the residual by less than half (:class:`~femshell.solvers.krylov.HeldFactor`).
 The convergence test, and with it the stability check, always factorises the point's own
 Hessian, so its inertia, and every ``stable`` result, is exact; a solve of k iterations started
