@@ -25,7 +25,8 @@ may prevent an equilibrium (or None), appended to the error of a failed solve. I
    has negative eigenvalues is a saddle: step along the eigenvector of the most negative
    eigenvalue (the sign that lowers Π) and continue, so the result is a local minimum.
 
-Refactorising only when it pays (``linear_solver="krylov"``, the default; theory §2.6): a
+Refactorising only when it pays (``linear_solver="krylov"``; theory §2.6; the coupled loop's
+default, ``TimeStepping.linear_solver``, and the continuation corrector's): a
 step's system K d = −∇Π is solved by CG or GMRES preconditioned by the last factorisation held
 (of an earlier iterate's Hessian, or of the previous solve's converged state), and K is
 factorised afresh only when that does not serve: the Krylov solve does not converge within its
@@ -107,7 +108,7 @@ class NewtonResult:
 
 def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, residual_scale=None,
              backend="auto", max_step=None, factorizers=None, quasi_newton=0, stall=None,
-             linear_solver="krylov", log=print) -> NewtonResult:
+             linear_solver="direct", log=print) -> NewtonResult:
     """Find an equilibrium (a local minimum if ``stable``) of ``problem`` from ``u0``.
 
     Parameters
@@ -138,7 +139,9 @@ def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, res
     linear_solver : "krylov" | "direct"
         "krylov": solve each step's system by CG or GMRES preconditioned by the last factorisation
         held, refactorising only when that does not serve (module docstring); "direct": factorise
-        every iterate's Hessian. Both test convergence, and stability, on a fresh factorisation.
+        every iterate's Hessian (the default here: in an isolated solve there is no factorisation to
+        hold, and on the post-buckling paths of the ``extremes`` validation case the Krylov steps' other
+        round-off led to other states). Both test convergence, and stability, on a fresh factorisation.
     """
     u = check_unknowns(problem, u0)
     max_iter, quasi_newton = integer("max_iter", max_iter, 0), integer("quasi_newton", quasi_newton, 0)
