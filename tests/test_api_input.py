@@ -123,8 +123,8 @@ def test_model_and_newton_argument_types(small_disk):
     rest = flat_rest_state(m.points, m.triangles, 0.01)
     with pytest.raises(TypeError, match="material must be a Material, got NoneType"):
         ShellModel(m, None, rest, [Clamped("outer")])
-    with pytest.raises(TypeError, match="rest must be a RestState, got float"):
-        ShellModel(m, Material(), 0.01, [Clamped("outer")])
+    with pytest.raises(TypeError, match="rest must be a RestState or a thickness .*, got str"):
+        ShellModel(m, Material(), "0.01", [Clamped("outer")])
     model = ShellModel(m, Material(), rest, [Clamped("outer")])
     with pytest.raises(ValueError, match=r"max_step must be a number > 0 \(or None\), got 0.0"):
         minimize(model, model.initial_unknowns(), max_step=0.0, log=None)

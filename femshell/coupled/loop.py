@@ -47,9 +47,8 @@ import numpy as np
 from .._checks import finite as _finite, integer as _integer
 from ..chemistry import ReactionDiffusion
 from ..growth import GrowthRestState
-from ..shell import RestState, ShellModel
+from ..shell import ShellModel
 from ..shell.model import FOLD_LIMIT_DEG
-from ..shell.rest_state import metric
 from ..solvers.linear import LinearSolverError, Refactorizer, factorize
 from ..solvers.newton import NewtonError
 from .equilibrium import Equilibria, rejected
@@ -127,10 +126,8 @@ class CoupledLoop(Equilibria, Checkpointing):
                              "(e.g. femshell.analysis.find_spots and same_pattern)")
         self.log = log if log is not None else self.observers.log
         n = mesh.n_vertices
-        # the rest state at s = 1 is replaced by GrowthRestState right away
-        a0 = metric(np.asarray(mesh.points, float), np.asarray(mesh.triangles))
-        self.shell = ShellModel(mesh, params.material,
-                                RestState(a0, params.natural_curvature * a0, params.h0), boundary_conditions)
+        # the rest state at s = 1 (the drawn shape) is replaced by GrowthRestState right away
+        self.shell = ShellModel(mesh, params.material, params.h0, boundary_conditions)
         self.growth = GrowthRestState(self.shell, params.h0, params.thickness_mode, params.rest_curvature,
                                       params.natural_curvature, params.stretch)
         self.chemistry = ReactionDiffusion(mesh.triangles, n, D=params.D, beta=params.beta, points=mesh.points,

@@ -288,7 +288,7 @@ class ShellParts:
     """
 
     def __init__(self, scene: Scene, mesh):
-        from ..shell import Material, ShellModel, flat_rest_state      # deferred: jax
+        from ..shell import Material, ShellModel      # deferred: jax
 
         self.scene = scene
         self.mesh = mesh
@@ -298,20 +298,19 @@ class ShellParts:
         self.bcs = boundary_conditions(scene, mesh)
         self.loads = make_loads(scene, mesh)
         try:
-            rest = flat_rest_state(mesh.points, mesh.triangles, self.h0)
-        except ValueError as exc:
-            raise SceneError(f"{scene.label}: [mesh]: {exc}") from None
-        try:
-            self.model = ShellModel(mesh, Material(E=mat.E, nu=mat.nu, law=mat.law), rest, self.bcs,
+            # the thickness: a flat mesh gets flat_rest_state, a curved one its drawn shape as the stress-free one
+            self.model = ShellModel(mesh, Material(E=mat.E, nu=mat.nu, law=mat.law), self.h0, self.bcs,
                                     self.loads)
         except ValueError as exc:
-            raise SceneError(f"{scene.label}: [[boundary]]: {exc}") from None
+            raise SceneError(f"{scene.label}: {'[mesh]' if 'metric' in str(exc) else '[[boundary]]'}: {exc}") from None
         k0 = sh.natural_curvature
         self.growth = GrowthRestState(self.model, self.h0, self.mode, "mesh" if k0 == "mesh" else "k0",
                                       0.0 if k0 == "mesh" else float(k0))
         self.rest_for = self.growth.rest_state
         self.mean_curvature = self.growth.mean_curvature
         self.s = np.ones(mesh.n_triangles)
+        if self.model.drawn_curved and k0 != "mesh":
+            self.apply(self.s)          # a given rest curvature k0 holds before (and without) any growth
 
     def apply(self, s):
         self.s = np.asarray(s, dtype=float)

@@ -22,13 +22,16 @@ True
 
 from __future__ import annotations
 
+import contextlib
+import warnings
+
 import numpy as np
 
 from . import element as el
 from .assembly import SparseAssembler
 from .boundary import rigid_body_pins
 from .materials import Material
-from .rest_state import RestState
+from .rest_state import RestState, flat_rest_state
 
 
 #: a mid-edge normal turned this far (degrees) from its faces marks a fold too sharp for the mesh
@@ -91,6 +94,11 @@ def rest_edge_normals(points, topology, face_normals):
     return out
 
 
+class PrestressWarning(UserWarning):
+    """A model whose drawn shape is not stress free in a way that looks unintended: a flat rest state
+    (zero target curvature) on a curved mesh."""
+
+
 class ShellModel:
     """The discrete shell energy (docs/theory.md §2) with exact derivatives (see module docstring).
 
@@ -99,8 +107,11 @@ class ShellModel:
     mesh : SurfaceMesh
         Reference mesh; its points are the initial positions.
     material : Material
-    rest : RestState
-        Target metric, curvature and thickness per element.
+    rest : RestState or thickness
+        Target metric, curvature and thickness per element; or the thickness (a number or one per
+        triangle), and the mesh as drawn is the stress-free shape (:meth:`stress_free_rest_state`; on a
+        flat mesh that is :func:`~femshell.shell.flat_rest_state`). A flat rest state (b̄ = 0) on a curved
+        mesh is prestressed: it warns (:class:`PrestressWarning`) with the energy at rest.
     boundary_conditions : list
         Objects from :mod:`femshell.shell.boundary`.
     loads : list
@@ -119,9 +130,15 @@ class ShellModel:
                  remove_rigid_modes=None, hessian_kernel="compiled"):
         if not all(hasattr(mesh, k) for k in ("points", "triangles", "topology")):
             raise TypeError(f"mesh must be a SurfaceMesh (see femshell.mesh), got {type(mesh).__name__}")
-        for name, value, kind in (("material", material, Material), ("rest", rest, RestState)):
-            if not isinstance(value, kind):
-                raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+        if not isinstance(material, Material):
+            raise TypeError(f"material must be a Material, got {type(material).__name__}")
+        thickness = None
+        if not isinstance(rest, RestState):
+            if isinstance(rest, (bool, str)) or not isinstance(rest, (int, float, np.integer, np.floating, np.ndarray)):
+                raise TypeError(f"rest must be a RestState or a thickness (a number or one per triangle), "
+                                f"got {type(rest).__name__}")
+            thickness = rest
+            rest = flat_rest_state(mesh.points, mesh.triangles, thickness)
         for name, items, method in (("boundary_conditions", boundary_conditions, "apply"), ("loads", loads, "setup")):
             if not isinstance(items, (list, tuple)):
                 kind = type(items).__name__
@@ -186,7 +203,14 @@ class ShellModel:
         self.edge_kind_el = edge_kind[t.face_edges]
         self.edge_direction_el = edge_direction[t.face_edges]
         self.face_edge_sign = t.face_edge_sign.astype(float)
+        inner = t.edge_faces[:, 1] >= 0
+        n0, n1 = nf[t.edge_faces[inner, 0]], nf[t.edge_faces[inner, 1]]
+        #: whether the drawn mesh bends anywhere (a fold between two faces): then b(mesh) ≠ 0
+        self.drawn_curved = bool(np.any(np.linalg.norm(np.cross(n0, n1), axis=1) > 1e-10)
+                                 or np.any(np.sum(n0 * n1, axis=1) < 0))
         self.set_rest_state(rest)
+        if thickness is not None and self.drawn_curved:
+            self.set_rest_state(self.stress_free_rest_state())     # the drawn shape is the stress-free one
 
         self.loads = list(loads)
         for load in self.loads:
@@ -198,6 +222,42 @@ class ShellModel:
         self.assembler_nodes = (element_nodes, slot, dof_node)
         self.assembler = SparseAssembler(self.element_dofs, self.free, nodes=self.assembler_nodes)
         self._load_assemblers = {}
+        if thickness is None and self.drawn_curved and not np.any(rest.curvature):
+            self._warn_prestress()
+
+    def _warn_prestress(self):
+        """A :class:`PrestressWarning` naming the energy the drawn curved shape holds in a flat rest state."""
+        mem, bend = self.energy_parts(self.initial_unknowns())
+        warnings.warn(f"the rest state is flat (zero curvature b̄, as from flat_rest_state) but the mesh is curved: "
+                      f"the shell as drawn is not stress free (strain energy at rest {mem.sum() + bend.sum():.4g}: "
+                      f"bending {bend.sum():.4g}, membrane {mem.sum():.4g}). For the drawn shape as the stress-free "
+                      "one give the thickness instead of a rest state, ShellModel(mesh, material, thickness, ...), "
+                      "or call model.set_rest_state(model.stress_free_rest_state()); to keep this prestress on "
+                      "purpose, filter femshell.shell.PrestressWarning", PrestressWarning, stacklevel=3)
+
+    @contextlib.contextmanager
+    def rigid_pins_released(self):
+        """Within the block this model is without its six rigid-body pins: the unknowns they held are
+        free (``free``, ``n_free`` and every vector and matrix over the free unknowns grow by six); the
+        pins are back on exit. Nothing else changes (rest state, load factor, conditions, loads).
+
+        For methods that remove the rigid motions another way, such as deflating the null space
+        (:func:`femshell.linear_buckling.shell_buckling_loads`). A model without pins is left as it is.
+        """
+        saved = (self.rigid_pins, self.fixed, self.free, self.assembler, self._load_assemblers)
+        if self.rigid_pins:
+            if getattr(self, "_released", None) is None:
+                fixed = self.fixed.copy()
+                for v, c in self.rigid_pins:
+                    fixed[3 * v + c] = False
+                self._released = (fixed, SparseAssembler(self.element_dofs, ~fixed))
+            fixed, assembler = self._released
+            self.rigid_pins, self.fixed, self.free = [], fixed, ~fixed
+            self.assembler, self._load_assemblers = assembler, {}
+        try:
+            yield self
+        finally:
+            self.rigid_pins, self.fixed, self.free, self.assembler, self._load_assemblers = saved
 
     # ---- rest state -------------------------------------------------------------------------
     def set_rest_state(self, rest: RestState):

@@ -34,7 +34,7 @@ from ..chemistry import ReactionDiffusion, curvature_source
 from ..growth import contractility, dstretch_dc, stretch
 from ..mesh import SurfaceMesh
 from ..mesh.generators import disk, sphere
-from ..shell import Material, RestState, ShellModel, flat_rest_state, metric
+from ..shell import Material, RestState, ShellModel, metric
 from ..solvers.linear import factorize
 from ..solvers.newton import NewtonError, minimize, secant_start
 from .framework import Row
@@ -169,7 +169,7 @@ def _cap_rows():
     psi = r / R
     cap = R * np.column_stack([np.sin(psi) * np.cos(phi), np.sin(psi) * np.sin(phi), np.cos(psi)])
     mesh = SurfaceMesh(cap, flat.triangles)
-    model = ShellModel(mesh, Material(1.0, 0.5), flat_rest_state(mesh.points, mesh.triangles, h))
+    model = ShellModel(mesh, Material(1.0, 0.5), h)
     rest0 = model.stress_free_rest_state()
 
     def rest_at(s):

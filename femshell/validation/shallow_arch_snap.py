@@ -74,7 +74,7 @@ import numpy as np
 
 from ..mesh.generators import strip
 from ..mesh.surface import SurfaceMesh
-from ..shell import DeadLoad, Material, ShellModel, SimplySupported, flat_rest_state
+from ..shell import DeadLoad, Material, ShellModel, SimplySupported
 from ..shell.loads import lumped_vertex_forces
 from ..solvers.continuation import LoadParameter, continuation
 from ..solvers.linear import factorize
@@ -140,10 +140,9 @@ def build(h, length=LENGTH, width=WIDTH, thickness=THICKNESS, eta=ETA):
     xc = p[mesh.triangles].mean(axis=1)[:, 0]
     traction = np.zeros((mesh.n_triangles, 3))
     traction[:, 2] = -thickness**3 / 12.0 * k**4 * r * np.sin(k * xc)
-    model = ShellModel(mesh, Material(E=1.0, nu=0.0), flat_rest_state(p, mesh.triangles, thickness),
+    model = ShellModel(mesh, Material(E=1.0, nu=0.0), thickness,      # the drawn arch is stress free
                        [SimplySupported("left"), SimplySupported("right")],
                        [DeadLoad(lumped_vertex_forces(mesh, traction))])
-    model.set_rest_state(model.stress_free_rest_state())       # the drawn arch is stress free
     model.load_factor = 0.0
     mid = np.flatnonzero(np.abs(p[:, 0] - 0.5 * length) <= 1e-9 * length)
     if len(mid) == 0:

@@ -66,8 +66,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..mesh.generators import cylinder
-from ..shell import (AreaLoad, Material, PointForce, Prescribed, RestState, ShellModel, Symmetry,
-                     flat_rest_state)
+from ..shell import AreaLoad, Material, PointForce, Prescribed, RestState, ShellModel, Symmetry
 from ..shell import element as el
 from ..solvers.linear import factorize
 from .common import finest_order, linear_response
@@ -327,10 +326,10 @@ def _problem_rows(label, cfg, sizes, refs, tol_standard, log=None):
     for i, h in enumerate(sizes):
         if i == 0:
             mesh, mat, bcs, loads, _ = cfg["mesh"](h)
-            _warm_up(ShellModel(mesh, mat, flat_rest_state(mesh.points, mesh.triangles, 1.0), bcs, loads))
+            _warm_up(ShellModel(mesh, mat, 1.0, bcs, loads))
         t_mesh = time.perf_counter()
         mesh, mat, bcs, loads, (vertex, comp, sign) = cfg["mesh"](h)
-        model = ShellModel(mesh, mat, flat_rest_state(mesh.points, mesh.triangles, 1.0), bcs, loads)
+        model = ShellModel(mesh, mat, 1.0, bcs, loads)
         rest = model.stress_free_rest_state()       # the drawn cylinder is stress free
         t_setup = time.perf_counter() - t_mesh
         Km, Kb, K1, t_asm = _split_hessian(model, rest.metric, rest.curvature)

@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from femshell.mesh.generators import cylinder
-from femshell.shell import AreaLoad, Material, Prescribed, ShellModel, flat_rest_state
+from femshell.shell import AreaLoad, Material, Prescribed, ShellModel
 from femshell.solvers.linear import factorize
 from femshell.validation.scordelis_lo import GRAVITY, HALF_ANGLE, LENGTH, NU, REFERENCE, E, R, T
 
@@ -30,11 +30,10 @@ def roof(h):
     mesh = cylinder(R, LENGTH, edge_length=h, angle_range=(np.pi / 2 - HALF_ANGLE, np.pi / 2 + HALF_ANGLE))
     edge = mesh.topology.boundary_vertex_groups["side-a"]
     mid = int(edge[np.argmin(np.abs(mesh.points[edge, 2] - LENGTH / 2))])
-    model = ShellModel(mesh, Material(E, NU), flat_rest_state(mesh.points, mesh.triangles, T),
+    model = ShellModel(mesh, Material(E, NU), T,
                        [Prescribed("bottom", components=(0, 1)), Prescribed("top", components=(0, 1)),
                         Prescribed(vertices=(mid,), components=(2,))],
                        [AreaLoad(mesh, (0.0, -GRAVITY, 0.0))])
-    model.set_rest_state(model.stress_free_rest_state())
     return model, mid
 
 

@@ -23,13 +23,13 @@ import time
 import numpy as np
 
 from femshell.mesh.generators import sphere
-from femshell.shell import Material, RestState, ShellModel, flat_rest_state
+from femshell.shell import Material, RestState, ShellModel
 from femshell.solvers.linear import factorize
 
 
 def grown_sphere(n_vertices, radius=30.0, h=2.0):
     mesh = sphere(radius=radius, n_vertices=n_vertices)
-    model = ShellModel(mesh, Material(1.0, 0.5), flat_rest_state(mesh.points, mesh.triangles, h))
+    model = ShellModel(mesh, Material(1.0, 0.5), h)
     rest = model.stress_free_rest_state()
     z = mesh.points[mesh.triangles].mean(1)[:, 2]
     s = np.where(z > 0.8 * radius, 1.2, 1.0)
