@@ -59,7 +59,9 @@ from .eigenproblem import BucklingResult, buckling_loads
 from .modes import azimuthal_wavenumber, mode_wavenumber
 from .plate import bending_stiffness
 from .prestress import membrane_prestress
+from .shell_state import BucklingPencil, ShellBuckling, buckling_pencil, shell_buckling_loads
 
 __all__ = ["membrane_prestress", "buckling_loads", "BucklingResult", "azimuthal_wavenumber",
            "mode_wavenumber", "critical_growth_strain", "CriticalGrowth", "critical_inner_radius",
-           "CriticalRadius", "bending_stiffness"]
+           "CriticalRadius", "bending_stiffness", "shell_buckling_loads", "ShellBuckling",
+           "buckling_pencil", "BucklingPencil"]
