@@ -536,6 +536,11 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
     elif kind == "static":
         lines.append(f"  solver     static: {so.steps} increments of the load factor / growth from 0 to 1, "
                      f"Newton to {'stable ' if so.stable else ''}equilibria (up to {so.max_cuts} cuts)")
+    elif kind == "linear-buckling":
+        operators.append("bordered (rigid-motion deflated) shift-invert Lanczos of the buckling pencil")
+        lines.append(f"  solver     linear buckling at factor {so.at:g} of the loads / growth"
+                     + (f" (reached in {so.steps} increments)" if so.at > 0 else " (the rest shape)")
+                     + f": {so.modes} modes" + (f" nearest factor {so.target:g}" if so.target is not None else ""))
     else:
         flags["continuation"] = True
         operators.append("bordered solves, shift-invert Lanczos for the smallest eigenvalues")

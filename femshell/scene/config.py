@@ -375,6 +375,24 @@ class ContinuationSolver:
     backend: str = _backend()
 
 
+@dataclass(frozen=True)
+class LinearBucklingSolver:
+    """Linear buckling (docs/guide/continuation.md) of the equilibrium at factor ``at`` of the loads and
+    growth strain (ramped together as by kind = "static"): the critical factors and modes."""
+
+    kind: str = "linear-buckling"
+    at: float = key(F, "factor of the loads and growth strain at the state (0: the rest shape)", 0.0, **NONNEG)
+    modes: int = key(I, "buckling modes wanted", 6, lo=1, hi=50)
+    target: float | None = key(F, "look for the factors nearest this one (default: the smallest above at)",
+                               lo=-1e12, hi=1e12)
+    steps: int = key(I, "increments of the factor from 0 to at", 10, lo=1)
+    max_cuts: int = key(I, "halvings of a failed increment before giving up", 8, lo=0)
+    stable: bool = key(B, "find stable equilibria (escape saddles)", True)
+    newton_rtol: float | None = _newton_rtol()
+    newton_max_iter: int | None = _newton_max_iter()
+    backend: str = _backend()
+
+
 def _stepping(name):
     return _model(STEPPING, name)
 
@@ -434,7 +452,8 @@ class TimeSolver:
     backend: str = _backend()
 
 
-SOLVER_CONFIGS = {"static": StaticSolver, "continuation": ContinuationSolver, "time": TimeSolver}
+SOLVER_CONFIGS = {"static": StaticSolver, "continuation": ContinuationSolver, "time": TimeSolver,
+                  "linear-buckling": LinearBucklingSolver}
 
 
 # ----------------------------------------------------------------------------- boundary conditions and loads

@@ -29,7 +29,7 @@ SET_ASIDE = ".complete"
 DROPPED = ".femshell-replaced.drop"
 #: femshell's files in a run directory (what --overwrite replaces)
 RUN_FILES = (SCENE_FILE, CHECKPOINT, CHECKPOINT + ".prev", fio.SUMMARY_NAME, f"{SERIES}.pvd", "branch.csv",
-             "movie.gif", "movie.mp4")
+             "buckling.csv", "modes.vtu", "movie.gif", "movie.mp4")
 RUN_DIRS = ("pictures", "special")
 #: femshell's own files inside RUN_DIRS and its frames (a user's files there are left alone)
 RUN_DIR_FILES = re.compile(r"(top|side|bifurcation)(_\d{6}|_last)?\.png|(primary|switched)-\d+-\w+\.vtu")

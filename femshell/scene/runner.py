@@ -102,6 +102,10 @@ def runner_class(kind: str):
         from .continuation_runner import ContinuationRunner
 
         return ContinuationRunner
+    if kind == "linear-buckling":
+        from .buckling_runner import LinearBucklingRunner      # deferred: as the continuation runner
+
+        return LinearBucklingRunner
     return {"time": TimeRunner, "static": StaticRunner}[kind]
 
 

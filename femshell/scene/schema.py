@@ -25,7 +25,7 @@ in 1/β, E = 1 by default: theory §1.3)::
                   pressure, moment); all loads are multiplied by the load factor
     [initial]     kind = "spot" | "spots" | "none"; amplitude, width, elongation, pole, direction,
                   distance; spots: layout = "icosahedron" | "random", count, seed
-    [solver]      kind = "static" | "continuation" | "time" and its controls (SOLVER_KEYS)
+    [solver]      kind = "static" | "continuation" | "time" | "linear-buckling" and its controls (SOLVER_KEYS)
     [output]      every, checkpoint_every, pictures, movie, fields, picture_field, cmap,
                   progress_interval
 
@@ -278,7 +278,7 @@ def _solver_section(ck, raw) -> dict:
     """[solver], checked first: the other sections depend on its kind."""
     solver_raw = raw.get("solver")
     if solver_raw is None:
-        ck.err("[solver] is missing: give kind = \"static\", \"continuation\" or \"time\"")
+        ck.err("[solver] is missing: give kind = \"static\", \"continuation\", \"time\" or \"linear-buckling\"")
         solver_raw = {}
     if not isinstance(solver_raw, dict):
         ck.err("[solver] must be a table")
@@ -286,10 +286,10 @@ def _solver_section(ck, raw) -> dict:
     kind = solver_raw.get("kind")
     if kind is None:
         if isinstance(raw.get("solver"), dict):
-            ck.err("[solver] kind is required: \"static\", \"continuation\" or \"time\"")
+            ck.err("[solver] kind is required: \"static\", \"continuation\", \"time\" or \"linear-buckling\"")
     elif kind not in SOLVER_KEYS:
         s = _suggest(kind, SOLVER_KEYS)
-        ck.err(f"[solver] kind = {_show(kind)} is not one of \"static\", \"continuation\", \"time\""
+        ck.err(f"[solver] kind = {_show(kind)} is not one of \"static\", \"continuation\", \"time\", \"linear-buckling\""
                f"{'; did you mean ' + _show(s) + '?' if s else ''}")
         kind = None
     if kind is not None:
@@ -380,7 +380,7 @@ def _growth_section(ck, raw, data, kind):
 def _time_sections(ck, raw, data, kind, law):
     """[chemistry] and [initial]: only the time loop has them."""
     for sec in ("chemistry", "initial"):
-        if sec in raw and kind in ("static", "continuation"):
+        if sec in raw and kind in ("static", "continuation", "linear-buckling"):
             ck.err(f"[{sec}] is given but solver.kind = \"{kind}\" has no chemistry (only kind = \"time\" "
                    "runs the mechanochemical loop); remove the section")
     if kind == "time":
@@ -538,10 +538,13 @@ def _continuation_consistency(ck, data, solver, law):
 def _solver_consistency(ck, data, kind, law):
     """What one section asks of another (the solver of the growth and loads, ranges of the parameter)."""
     solver, mesh = data["solver"], data["mesh"]
-    if kind == "static":
+    if kind in ("static", "linear-buckling"):
         if law in ("none", None) and not data["loads"]:
-            ck.err("solver.kind = \"static\" with no growth and no [[loads]] has nothing to solve: the rest "
+            ck.err(f"solver.kind = \"{kind}\" with no growth and no [[loads]] has nothing to solve: the rest "
                    "shape is the answer")
+    if kind == "linear-buckling" and solver.get("target") is not None and solver["target"] <= solver.get("at", 0.0):
+        ck.err(f"[solver] target = {_fmt(solver['target'])} must be > at = {_fmt(solver.get('at', 0.0))} (the "
+               "factors searched lie beyond the state)")
     if kind == "continuation" and solver.get("parameter"):
         _continuation_consistency(ck, data, solver, law)
     if law == "inner_region" and data["growth"].get("inner_radius") is None:

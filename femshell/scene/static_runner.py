@@ -99,8 +99,12 @@ class StaticRunner(BaseRunner):
     def finished(self):
         return self.k >= self.n_steps
 
+    def _target_of(self, k):
+        """The factor at the end of increment k."""
+        return (k + 1) / self.n_steps
+
     def advance(self):
-        target = (self.k + 1) / self.n_steps
+        target = self._target_of(self.k)
         self._target, self._solves = target, []
         try:
             res, = follow_load(self.problem, self.u, [target], start=self.mu, previous=self.prev,
