@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from ..mesh.generators import cylinder
-from ..shell import Material, Prescribed, RestState, ShellModel, Symmetry, flat_rest_state
+from ..shell import Material, Prescribed, RestState, ShellModel, Symmetry
 from ..solvers.continuation import GrowthParameter
 from .framework import Row, timed
 from .shell_buckling import convergence_rows, first_instability, instability_kind, linear_buckling
@@ -69,7 +69,7 @@ def cylinder_problem(n_vertices, seed=0):
     b = bottom[np.argmin(np.linalg.norm(mesh.points[bottom] - [-RADIUS, 0, 0], axis=1))]
     bcs = [Symmetry("z", 0.0), Symmetry("z", LENGTH), Prescribed(vertices=(int(a),), components=(0, 1)),
            Prescribed(vertices=(int(b),), components=(1,))]
-    model = ShellModel(mesh, Material(E, NU), flat_rest_state(mesh.points, mesh.triangles, THICKNESS), bcs,
+    model = ShellModel(mesh, Material(E, NU), THICKNESS, bcs,
                        remove_rigid_modes=False)
     curvature = model.stress_free_rest_state().curvature        # the drawn cylinder is stress free
     problem = GrowthParameter(model, lambda g: axial_growth(mesh.points, mesh.triangles, curvature, g),

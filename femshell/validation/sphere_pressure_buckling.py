@@ -47,7 +47,7 @@ import numpy as np
 
 from ..chemistry import surface_mass_lumped, surface_stiffness
 from ..mesh.generators import sphere
-from ..shell import FollowerPressure, Material, ShellModel, flat_rest_state
+from ..shell import FollowerPressure, Material, ShellModel
 from ..solvers.continuation import LoadParameter
 from .framework import Row, timed
 from .shell_buckling import convergence_rows, first_instability, instability_kind, linear_buckling
@@ -75,9 +75,8 @@ TOL = {"quick": (0.35, None, 4.0), "full": (0.05, 0.03, 2.0)}
 def sphere_model(n_vertices, seed=0):
     """The stress-free sphere of about ``n_vertices`` vertices under the classical pressure at load factor 1."""
     mesh = sphere(RADIUS, n_vertices=n_vertices, seed=seed)
-    model = ShellModel(mesh, Material(E, NU), flat_rest_state(mesh.points, mesh.triangles, THICKNESS), [],
+    model = ShellModel(mesh, Material(E, NU), THICKNESS, [],      # the drawn sphere is stress free
                        [FollowerPressure(-P_CL)])
-    model.set_rest_state(model.stress_free_rest_state())   # the drawn sphere is stress free
     return model
 
 
