@@ -41,7 +41,8 @@ import scipy.sparse as sp
 
 from ._checks import finite, flat_or_spatial_surface, real_array, triangle_array, vertex_indices
 
-__all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "ReactionDiffusion",
+__all__ = ["P1Assembler", "surface_mass_lumped", "surface_stiffness", "curvature_source", "curvature_source_slope",
+           "ReactionDiffusion",
            "W", "HS"]
 
 #: the paper's source: production rate w and saturation curvature Hs, the defaults here and of
@@ -202,6 +203,22 @@ def curvature_source(H, w: float = W, Hs: float = HS):
     with np.errstate(invalid="ignore"):
         ratio = np.where(np.isposinf(Hp), 1.0, Hp / (Hs + Hp))
     return w * Hs * ratio
+
+
+def curvature_source_slope(H, w: float = W, Hs: float = HS):
+    r"""dP/dH of :func:`curvature_source`: w Hs² / (Hs + H)² for H > 0, else 0 (concentration·length/time).
+
+    Example
+    -------
+    >>> curvature_source_slope(np.array([-1.0, 0.0, 0.05]))
+    array([0.  , 0.  , 3.75])
+    """
+    Hs = finite("Hs (saturation curvature)", Hs, 0.0, lo_open=True)
+    w = finite("w (production rate)", w, 0.0)
+    H = real_array("H", H)
+    Hp = np.maximum(H, 0.0)
+    with np.errstate(over="ignore"):
+        return np.where(H > 0, w * (Hs / (Hs + Hp)) ** 2, 0.0)
 
 
 class ReactionDiffusion:

@@ -332,6 +332,17 @@ class GrowthRestState:
         s2 = (s * s)[:, None, None]
         return RestState(target_metric(self.a0, s), s2 * self.b0, target_thickness(self.h0, s, self.thickness_mode))
 
+    def rest_state_derivative(self, s):
+        """d(ā, b̄, h̄)/ds of :meth:`rest_state` at the element stretches ``s`` (m,): three arrays
+        (m, 2, 2), (m, 2, 2), (m,): 2s ā0, 2s b̄0 and −2 h0/s³ ("volume") or 0 ("uniform")."""
+        s = _check_stretch(np.asarray(s, dtype=float), len(self.a0))
+        two_s = (2.0 * s)[:, None, None]
+        if self.thickness_mode == "volume":
+            dh = -2.0 * np.asarray(self.h0, dtype=float) / s**3
+        else:
+            dh = np.zeros_like(s)
+        return two_s * self.a0, two_s * self.b0, np.broadcast_to(dh, s.shape).astype(float)
+
     def apply(self, s):
         """``model.set_rest_state(rest_state(s))``."""
         self.model.set_rest_state(self.rest_state(s))

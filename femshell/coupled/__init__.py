@@ -9,7 +9,9 @@ control, the staggered loop and what it reports.
 * :mod:`femshell.coupled.observers`: :class:`LoopObservers`, the caller's callbacks;
 * :mod:`femshell.coupled.equilibrium`: the stable equilibrium of the grown shell (Newton, snaps, ramp);
 * :mod:`femshell.coupled.state`: the checkpoint state (``state_dict`` / ``load_state_dict``);
-* :mod:`femshell.coupled.loop`: :class:`CoupledLoop`.
+* :mod:`femshell.coupled.loop`: :class:`CoupledLoop`;
+* :mod:`femshell.coupled.stationary`: stationary states as one system in (u, c), its exact Jacobian
+  (:mod:`femshell.coupled.stationary_jacobian`) and Newton on it (:func:`stationary_state`).
 """
 
 from ..growth import REST_CURVATURES, GrowthRestState
@@ -19,10 +21,12 @@ from .observers import LoopObservers
 from .parameters import MechanochemicalModel
 from .records import CoupledError, RunResult, StepRecord
 from .state import STATE_VERSION
+from .stationary import StationaryProblem, StationaryResult, stationary_state
 from .stepping import (SOURCE_RULES, STEP_CONTROLS, TimeStepping, error_step_factor, feedback_gain, feedback_step_limit,
                        held_source_error, stable_extrapolation)
 
 __all__ = ["MechanochemicalModel", "GrowthRestState", "InitialSpot", "gaussian_spot", "TimeStepping",
            "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "LoopObservers", "REST_CURVATURES",
            "feedback_gain", "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES", "STATE_VERSION",
-           "STEP_CONTROLS", "held_source_error", "error_step_factor"]
+           "STEP_CONTROLS", "held_source_error", "error_step_factor",
+           "StationaryProblem", "StationaryResult", "stationary_state"]

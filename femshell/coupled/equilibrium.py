@@ -17,7 +17,23 @@ import numpy as np
 from ..solvers.newton import NewtonError, minimize
 from .records import CoupledError
 
-__all__ = ["Equilibria", "rejected"]
+__all__ = ["Equilibria", "rejected", "strain_force_unit"]
+
+
+def strain_force_unit(shell, growth, params) -> float:
+    """|∇Π| of a uniform unit strain of the rest shape (by a 1e-3 difference), the scale of the shell's
+    forces; E h0 √(area) if that is not a positive number. Leaves the rest state at s = 1."""
+    u0 = shell.initial_unknowns()
+    m = len(growth.a0)
+    growth.apply(np.ones(m))
+    g1 = shell.gradient(u0)
+    growth.apply(np.full(m, 1.001))
+    g2 = shell.gradient(u0)
+    growth.apply(np.ones(m))
+    unit = float(np.linalg.norm(g2 - g1)) / 1e-3
+    if not (math.isfinite(unit) and unit > 0):
+        unit = params.E * params.h0 * math.sqrt(float(np.sum(shell.rest.area)))
+    return unit
 
 
 def rejected(res) -> str | None:
@@ -33,18 +49,8 @@ class Equilibria:
     """Stable equilibria of the loop's shell (``self.shell``, ``self.growth``, ``self.stepping``)."""
 
     def _residual_floor(self) -> float:
-        """atol of Newton: newton_atol_strain × |∇Π| of a uniform unit strain (by a 1e-3 difference)."""
-        u0 = self.shell.initial_unknowns()
-        m = len(self.growth.a0)
-        self.growth.apply(np.ones(m))
-        g1 = self.shell.gradient(u0)
-        self.growth.apply(np.full(m, 1.001))
-        g2 = self.shell.gradient(u0)
-        self.growth.apply(np.ones(m))
-        unit = float(np.linalg.norm(g2 - g1)) / 1e-3
-        if not (math.isfinite(unit) and unit > 0):
-            unit = self.params.E * self.params.h0 * math.sqrt(float(np.sum(self.shell.rest.area)))
-        return self.stepping.newton_atol_strain * unit
+        """atol of Newton: newton_atol_strain × :func:`strain_force_unit`."""
+        return self.stepping.newton_atol_strain * strain_force_unit(self.shell, self.growth, self.params)
 
     def _newton(self, u_start, max_iter=None, residual_scale=None, stall=True):
         st = self.stepping

@@ -10,8 +10,8 @@ import math
 from dataclasses import asdict, dataclass, fields
 
 from .._checks import finite as _finite
-from ..chemistry import HS, W, curvature_source
-from ..growth import B, C_STAR, LAM_MAX, LAM_MIN, REST_CURVATURES, THICKNESS_MODES, contractility, stretch
+from ..chemistry import HS, W, curvature_source, curvature_source_slope
+from ..growth import B, C_STAR, LAM_MAX, LAM_MIN, REST_CURVATURES, THICKNESS_MODES, contractility, dstretch_dc, stretch
 from ..shell import Material
 
 __all__ = ["MechanochemicalModel", "store_numbers"]
@@ -145,9 +145,17 @@ class MechanochemicalModel:
         """s(c) = Λ0 / Λ(c) (dimensionless), any shape."""
         return stretch(c, self.lam0, self.lam_max, self.lam_min, self.b, self.c_star)
 
+    def dstretch_dc(self, c):
+        """ds/dc of :meth:`stretch` (1/concentration), any shape."""
+        return dstretch_dc(c, self.lam0, self.lam_max, self.lam_min, self.b, self.c_star)
+
     def source(self, H):
         """P(H) = w H / (1 + H/Hs) for H > 0, else 0 (concentration/time)."""
         return curvature_source(H, self.w, self.Hs)
+
+    def source_slope(self, H):
+        """dP/dH of :meth:`source` (concentration·length/time)."""
+        return curvature_source_slope(H, self.w, self.Hs)
 
     def as_dict(self) -> dict:
         return asdict(self)

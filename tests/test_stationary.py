@@ -1,0 +1,115 @@
+"""femshell.coupled.stationary: the stationary coupled system in (u, c), its Jacobian and Newton (theory §2.9).
+
+Small spheres (R = 5, 200 and 400 vertices, h0 = 0.5) with the milder contractility ratio of
+tests/test_coupled.py (Λmin = 13.5).
+"""
+
+import numpy as np
+import pytest
+
+from femshell.chemistry import ReactionDiffusion
+from femshell.coupled import (CoupledLoop, InitialSpot, MechanochemicalModel, StationaryProblem, TimeStepping,
+                              stationary_state)
+from femshell.mesh.generators import sphere
+from femshell.solvers.linear import factorize
+
+R = 5.0
+
+
+@pytest.fixture(scope="module")
+def small_ball():
+    return sphere(R, n_vertices=200, seed=0)
+
+
+def perturbed_problem(mesh, thickness_mode, seed=1):
+    """A problem at a random state: shape off equilibrium (H of both signs), c across the switch
+    (b = 20 makes ds/dc large over the whole range), D > 0 so that every term is present."""
+    p = MechanochemicalModel(h0=0.5, radius=R, lam_min=13.5, D=0.3, b=20.0, thickness_mode=thickness_mode)
+    loop = CoupledLoop(mesh, p, TimeStepping(), equilibrate=False, log=None)
+    problem = StationaryProblem.of_loop(loop)
+    rng = np.random.default_rng(seed)
+    z = problem.join(loop.u + 0.03 * rng.standard_normal(problem.n_u), rng.uniform(0.0, 0.3, problem.n_c))
+    return problem, z, rng
+
+
+@pytest.mark.parametrize("thickness_mode", ["volume", "uniform"])
+def test_each_jacobian_block_matches_central_differences(small_ball, thickness_mode):
+    problem, z, rng = perturbed_problem(small_ball, thickness_mode)
+    u, c = problem.split(z)
+    _, H = problem.growth.mean_curvature(u)
+    assert H.min() < 0 < H.max()                      # the source's both branches are exercised
+    J = problem.jacobian(z)
+    n_u = problem.n_u
+    parts = {"shell Hessian": (slice(0, n_u), slice(0, n_u)), "dF_u/dc": (slice(0, n_u), slice(n_u, None)),
+             "dF_c/du": (slice(n_u, None), slice(0, n_u)), "dF_c/dc": (slice(n_u, None), slice(n_u, None))}
+    eps = 1e-6
+    for name, (rows, cols) in parts.items():
+        v = np.zeros(len(z))
+        v[cols] = rng.standard_normal(len(z))[cols]
+        exact = (J @ v)[rows]
+        fd = (problem.residual(z + eps * v) - problem.residual(z - eps * v))[rows] / (2 * eps)
+        assert np.linalg.norm(exact) > 1e-3 * np.linalg.norm(problem.residual(z)[rows]), name
+        assert np.linalg.norm(fd - exact) <= 1e-6 * np.linalg.norm(exact), name
+
+
+def test_the_chemistry_residual_is_what_the_time_step_changes(small_ball):
+    # the loop's step (M + γ D K) c⁺ = M (c e^{−β dt} + γ P) has (M + γ D K)(c⁺ − c) = γ F_c exactly
+    # (e^{−β dt} − 1 + γ β = 0): F_c = 0 iff the step leaves c as it is
+    problem, z, _ = perturbed_problem(small_ball, "volume")
+    u, c = problem.split(z)
+    f_c = problem.residual(z)[problem.n_u:]
+    p, points = problem.params, problem.shell.positions(u)
+    rd = ReactionDiffusion(small_ball.triangles, small_ball.n_vertices, D=p.D, beta=p.beta, points=points,
+                           factorize=factorize, nonnegative=False)
+    _, H = problem.growth.mean_curvature(u)
+    dt = 0.5
+    gamma = -np.expm1(-p.beta * dt) / p.beta
+    change = rd.step(c, dt, source=p.source(H)) - c
+    lhs = problem.chemistry.mass_lumped(points) * change + gamma * p.D * (problem.chemistry.stiffness(points) @ change)
+    assert np.abs(lhs - gamma * f_c).max() <= 1e-12 * np.abs(f_c).max()
+    assert np.abs(f_c).max() > 1e-2                     # not trivially zero
+
+
+def test_bad_input_is_named(small_ball):
+    problem, z, _ = perturbed_problem(small_ball, "volume")
+    with pytest.raises(ValueError, match=rf"z must have {problem.n_u} shell unknowns and {problem.n_c} concentrations"):
+        problem.residual(z[:-1])
+    loop = CoupledLoop(small_ball, problem.params, TimeStepping(), equilibrate=False, log=None)
+    with pytest.raises(ValueError, match=r"tol must be a finite number in \(0, inf\)"):
+        stationary_state(loop, tol=0.0)
+
+
+@pytest.fixture(scope="module")
+def stationary_run():
+    """A spot that a time run makes stationary (D = 0): rate test at the loop's default 1e-3."""
+    mesh = sphere(R, n_vertices=400, seed=0)
+    p = MechanochemicalModel(h0=0.5, radius=R, lam_min=13.5, D=0.0)
+    st = TimeStepping(t_final=80.0, dt_initial=0.05, ramp_ds=0.2)
+    loop = CoupledLoop(mesh, p, st, c0=InitialSpot(amplitude=0.3, width=1.0), log=None)
+    result = loop.run()
+    assert result.status == "stationary"
+    return loop
+
+
+def test_newton_reproduces_the_time_run_s_stationary_spot(stationary_run):
+    loop = stationary_run
+    st, p = loop.stepping, loop.params
+    c_time, x_time = loop.c.copy(), loop.points.copy()
+    problem = StationaryProblem.of_loop(loop)
+    force0, rate0 = problem.residual_norms(problem.join(loop.u, loop.c))
+    assert rate0 <= st.stationary_rate_c                  # the time run's end is a root to its own tolerance
+    root = stationary_state(loop, tol=1e-9, problem=problem)
+    assert root.converged and root.iterations <= 4, root.message
+    assert max(root.history[-1]) <= 1e-9
+    assert np.array_equal(loop.c, c_time)                 # the loop's state is untouched
+    # the same spot, to the distance the stationarity tolerance allows: a rate below r per unit time
+    # is at most r c_scale / β from a fixed point that relaxes at least at β (D = 0: c = P/β)
+    c_scale = max(c_time.max(), 1e-2 * p.c_max)
+    assert np.abs(root.c - c_time).max() <= st.stationary_rate_c * c_scale / p.beta
+    assert np.abs(problem.shell.positions(root.u) - x_time).max() <= st.stationary_rate_x * p.h0 / p.beta
+    assert np.array_equal(root.c > p.c_star, c_time > p.c_star) and (root.c > p.c_star).sum() >= 3
+    # and the root is a fixed point of the loop itself: one more time step does not move it
+    assert root.c.min() > -1e-12 * c_scale                # c = P/β ≥ 0 at a root, up to round-off
+    loop.load_state_dict({**loop.state_dict(), "c": np.maximum(root.c, 0.0), "u": root.u})
+    record = loop.advance()
+    assert record.rate_c < 1e-7 and record.rate_x < 1e-7
