@@ -148,7 +148,8 @@ def _parser():
                     "  sweep     run a scene over a grid of parameter values on Dask\n"
                     "  scenes    list the embedded scenes\n"
                     "  render    pictures and a movie of a finished run\n"
-                    "  warmup    compile the element kernels once, ahead of the first run",
+                    "  warmup    compile the element kernels once, ahead of the first run\n"
+                    "  stationary  Newton on the stationary coupled system from a time run (--from DIR)",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
@@ -183,6 +184,15 @@ def _parser():
     sub.add_parser("warmup", help="compile the element kernels once (kept on disk for later runs)",
                    description="Compile the element kernels (C and JAX) into the user's cache directories, so "
                                "that no run pays for compiling them (about 20-60 s once).")
+    st = sub.add_parser("stationary", help="the stationary state near a time run's last state (Newton on (x, c))",
+                        description="Newton on the stationary coupled system (mechanical equilibrium and "
+                                    "D Δc + P(H) − βc = 0 on the deformed surface; docs: theory §2.9) from the "
+                                    "last checkpoint of the time run in DIR; writes DIR/stationary.json and "
+                                    "DIR/stationary.vtu. Exit 0 when it converged, 1 when not.")
+    st.add_argument("--from", dest="run_dir", required=True, metavar="DIR", help="a time run's --out directory")
+    st.add_argument("--tol", type=_positive("--tol"), default=1e-9,
+                    help="force (per unit-strain force) and rate of c (per β c_scale) to reach (default 1e-9)")
+    st.add_argument("--max-iter", type=int, default=30, help="Newton steps at most (default 30)")
     p.subcommands = sub.choices      # name -> parser, for their usage errors
     return p
 
@@ -387,6 +397,14 @@ def _cmd_warmup(args):
     return 0
 
 
+def _cmd_stationary(args):
+    from .scene.stationary_command import stationary_from_run      # deferred: the solvers
+
+    if args.max_iter < 0:
+        raise ValueError(f"--max-iter must be >= 0, got {args.max_iter}")
+    return stationary_from_run(args.run_dir, tol=args.tol, max_iter=args.max_iter)
+
+
 def main(argv=None):
     configure()          # process settings (BLAS threads, JAX cache): femshell.config
     parser = _parser()
@@ -397,7 +415,8 @@ def main(argv=None):
         parser.print_help()
         return 0
     handler = {"mesh": _cmd_mesh, "validate": _cmd_validate, "run": _cmd_run, "sweep": _cmd_sweep,
-               "scenes": _cmd_scenes, "render": _cmd_render, "warmup": _cmd_warmup}[args.command]
+               "scenes": _cmd_scenes, "render": _cmd_render, "warmup": _cmd_warmup,
+               "stationary": _cmd_stationary}[args.command]
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning

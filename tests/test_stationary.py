@@ -113,3 +113,27 @@ def test_newton_reproduces_the_time_run_s_stationary_spot(stationary_run):
     loop.load_state_dict({**loop.state_dict(), "c": np.maximum(root.c, 0.0), "u": root.u})
     record = loop.advance()
     assert record.rate_c < 1e-7 and record.rate_x < 1e-7
+
+
+def test_command_line_from_a_run_directory(tmp_path, capsys):
+    import json
+
+    from femshell.cli import main
+
+    scene = tmp_path / "ball.toml"
+    scene.write_text('[mesh]\nkind = "sphere"\nradius = 5.0\nn_vertices = 150\n[shell]\nthickness = 1.0\n'
+                     '[growth]\nlaw = "contractility"\n[chemistry]\nD = 0.2\n[initial]\nkind = "none"\n'
+                     '[solver]\nkind = "time"\nt_final = 10.0\n[output]\npictures = false\n')
+    out = tmp_path / "run"
+    assert main(["run", str(scene), "--out", str(out), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["stationary", "--from", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "converged in" in said and "newton  0" in said
+    result = json.loads((out / "stationary.json").read_text())
+    assert result["converged"] and max(result["history"][-1].values()) <= 1e-9
+    assert (out / "stationary.vtu").is_file()
+    assert main(["stationary", "--from", str(tmp_path / "none")]) == 2
+    assert "no such directory (give the --out of a femshell run)" in capsys.readouterr().err
+    assert main(["stationary", "--from", str(out), "--max-iter", "-1"]) == 2
+    assert "--max-iter must be >= 0, got -1" in capsys.readouterr().err
