@@ -6,10 +6,11 @@ tests/test_coupled.py (Λmin = 13.5).
 
 import numpy as np
 import pytest
+from scipy.linalg import eigh
 
 from femshell.chemistry import ReactionDiffusion
 from femshell.coupled import (CoupledLoop, InitialSpot, MechanochemicalModel, StationaryProblem, TimeStepping,
-                              stationary_state)
+                              coupled_stability, stationary_state)
 from femshell.mesh.generators import sphere
 from femshell.solvers.linear import factorize
 
@@ -137,3 +138,48 @@ def test_command_line_from_a_run_directory(tmp_path, capsys):
     assert "no such directory (give the --out of a femshell run)" in capsys.readouterr().err
     assert main(["stationary", "--from", str(out), "--max-iter", "-1"]) == 2
     assert "--max-iter must be >= 0, got -1" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- stability in the coupled dynamics
+
+def test_stability_of_the_untouched_sphere_is_the_chemistry_s_own_decay(small_ball):
+    # c = 0 on the drawn sphere: H = 0, P = P' = 0, so ∂F_c/∂u = 0 and S = −β M − D K: μ_k = −β − D λ_k
+    # with λ_k the eigenvalues of (K, M) (0, then the l = 1 triplet ≈ 2/R², ...)
+    p = MechanochemicalModel(h0=0.5, radius=R, lam_min=13.5, D=0.3)
+    loop = CoupledLoop(small_ball, p, TimeStepping(), equilibrate=False, log=None)
+    problem = StationaryProblem.of_loop(loop)
+    result = coupled_stability(problem, loop.u, loop.c, k=7)
+    points = problem.shell.positions(loop.u)
+    lam = eigh(problem.chemistry.stiffness(points).toarray(), np.diag(problem.chemistry.mass_lumped(points)),
+               eigvals_only=True)[:7]
+    assert np.allclose(result.eigenvalues, -p.beta - p.D * lam, rtol=1e-10, atol=1e-12)
+    assert lam[1] * R**2 == pytest.approx(2.0, rel=0.05)       # the l = 1 harmonics on the sphere
+    assert result.stable and result.n_negative_mechanical == 0 and result.method == "dense"
+
+
+def test_stability_of_the_stationary_spot_predicts_the_time_loop_s_decay(stationary_run):
+    loop = stationary_run
+    problem = StationaryProblem.of_loop(loop)
+    root = stationary_state(loop, problem=problem)
+    dense = coupled_stability(problem, root.u, root.c, k=6, method="dense")
+    assert dense.stable                                     # the time run went there: it is an attractor
+    assert dense.c_modes.shape == (problem.n_c, 6) and dense.shape_modes.shape == (problem.n_u, 6)
+    arpack = coupled_stability(problem, root.u, root.c, k=6, method="shift-invert")
+    # the same six, up to which of a complex pair a cut at six keeps
+    for a, b in zip(arpack.eigenvalues, dense.eigenvalues):
+        assert a.real == pytest.approx(b.real, rel=1e-8) and abs(a.imag) == pytest.approx(abs(b.imag), abs=1e-8)
+    # the loop from the root plus a small multiple of the leading mode decays at Re μ1 (first order in dt)
+    mu, mode = dense.leading.real, np.real(dense.c_modes[:, 0])
+    assert -loop.params.beta < mu < 0                      # the spot's feedback slows the decay below β's
+    dt = 0.05                                               # the loop's rate is 1 % off μ1 here
+    stepping = TimeStepping(t_final=2.0, dt_initial=dt, dt_max=dt, dt_min=dt / 10, stationary_rate_c=0.0,
+                            feedback_amplification=0.0)
+    perturbed = CoupledLoop.from_state_dict(loop.mesh, loop.params, {**loop.state_dict(), "u": root.u, "dt": dt, "t": 0.0, "step": 0,
+                                            "c": np.maximum(root.c + 1e-3 * root.c.max() * mode, 0.0)}, stepping)
+    t, amplitude = [], []
+    for _ in perturbed.iterate():
+        t.append(perturbed.t)
+        amplitude.append(abs(np.dot(perturbed.c - root.c, mode)))
+    t, amplitude = np.array(t), np.array(amplitude)
+    rate = np.polyfit(t[t > 1.0], np.log(amplitude[t > 1.0]), 1)[0]
+    assert rate == pytest.approx(mu, rel=0.02)

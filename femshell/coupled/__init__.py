@@ -11,7 +11,8 @@ control, the staggered loop and what it reports.
 * :mod:`femshell.coupled.state`: the checkpoint state (``state_dict`` / ``load_state_dict``);
 * :mod:`femshell.coupled.loop`: :class:`CoupledLoop`;
 * :mod:`femshell.coupled.stationary`: stationary states as one system in (u, c), its exact Jacobian
-  (:mod:`femshell.coupled.stationary_jacobian`) and Newton on it (:func:`stationary_state`).
+  (:mod:`femshell.coupled.stationary_jacobian`) and Newton on it (:func:`stationary_state`);
+* :mod:`femshell.coupled.stationary_stability`: their stability in the coupled dynamics (:func:`coupled_stability`).
 """
 
 from ..growth import REST_CURVATURES, GrowthRestState
@@ -22,6 +23,7 @@ from .parameters import MechanochemicalModel
 from .records import CoupledError, RunResult, StepRecord
 from .state import STATE_VERSION
 from .stationary import StationaryProblem, StationaryResult, stationary_state
+from .stationary_stability import CoupledStability, coupled_stability
 from .stepping import (SOURCE_RULES, STEP_CONTROLS, TimeStepping, error_step_factor, feedback_gain, feedback_step_limit,
                        held_source_error, stable_extrapolation)
 
@@ -29,4 +31,4 @@ __all__ = ["MechanochemicalModel", "GrowthRestState", "InitialSpot", "gaussian_s
            "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "LoopObservers", "REST_CURVATURES",
            "feedback_gain", "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES", "STATE_VERSION",
            "STEP_CONTROLS", "held_source_error", "error_step_factor",
-           "StationaryProblem", "StationaryResult", "stationary_state"]
+           "StationaryProblem", "StationaryResult", "stationary_state", "CoupledStability", "coupled_stability"]
