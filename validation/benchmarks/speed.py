@@ -18,11 +18,16 @@ printed before and after: on a shared machine quote CPU seconds and ratios, not 
 * ``--scaling [N ...]``: the element Hessian at 6k/12k/25k/50k vertices and the exponent p of
   a least-squares fit time ∝ vertices^p, old and new.
 
-    python validation/benchmarks/speed.py [--vertices 25000] [--setup] [--scaling [6000 12000 25000 50000]]
+* ``--solve``: the linear-solver rows of :mod:`speed_solve` at the same size: PARDISO factorisation
+  and refactorisation, two stable Newton solves with direct solves (old) and with the held factor
+  as a Krylov preconditioner (new: factorisations, Krylov iterations, CPU per Newton iteration),
+  and ``--coupled-steps`` steps of the coupled loop on both paths.
 
-Other rows (factorisation, Krylov iterations, Newton iteration, coupled step) are added as more
-functions of the same form: ``section(model, u) -> [(label, old, new), ...]`` in :data:`SECTIONS`,
-with ``old``/``new`` the (cpu, wall) pairs of :func:`measure`.
+    python validation/benchmarks/speed.py [--vertices 25000] [--setup] [--scaling [6000 12000 25000 50000]]
+                                          [--solve [--coupled-steps 4]]
+
+More element-level rows are functions of the form ``section(model, u) -> [(label, old, new), ...]``
+in :data:`SECTIONS`, with ``old``/``new`` the (cpu, wall) pairs of :func:`measure`.
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+import speed_solve  # noqa: E402
 from shell_newton import grown_sphere  # noqa: E402
 
 from femshell.shell.assembly import SparseAssembler  # noqa: E402
@@ -177,7 +183,11 @@ def main(argv=None):
     ap.add_argument("--vertices", type=int, default=25000)
     ap.add_argument("--setup", action="store_true", help="set-up cold and warm in fresh processes")
     ap.add_argument("--scaling", type=int, nargs="*", help=f"element Hessian per size (default {SCALING_SIZES})")
+    ap.add_argument("--solve", action="store_true", help="factorisation, Krylov and Newton rows (speed_solve)")
+    ap.add_argument("--coupled-steps", type=int, default=4, help="coupled steps per path with --solve (0: none)")
     args = ap.parse_args(argv)
+    if args.coupled_steps < 0:
+        ap.error(f"--coupled-steps must be >= 0, got {args.coupled_steps}")
     sizes = SCALING_SIZES if args.scaling == [] else args.scaling
     if args.vertices < 100 or (sizes and min(sizes) < 100):
         ap.error(f"--vertices and --scaling take vertex counts >= 100, got {args.vertices} and {sizes}")
@@ -196,6 +206,8 @@ def main(argv=None):
         print_rows(setup_section(args.vertices))
     if sizes:
         scaling_section(sizes)
+    if args.solve:
+        speed_solve.print_rows(args.vertices, args.coupled_steps)
     print(f"load average {os.getloadavg()[0]:.2f}")
 
 
