@@ -27,17 +27,20 @@ from femshell.shell import Material, RestState, ShellModel
 from femshell.solvers.linear import factorize
 
 
-def grown_sphere(n_vertices, radius=30.0, h=2.0):
+def grown_sphere(n_vertices, radius=30.0, h=2.0, growth=1.2, law="svk", bump=0.05):
+    """Sphere R, thickness h, stress free as drawn (ν = 0.5, ``law``), whose polar cap z > 0.8 R grows
+    by ``growth`` (volume-conserving thickness), started from the sphere with a smooth bump of
+    ``bump`` h on the cap."""
     mesh = sphere(radius=radius, n_vertices=n_vertices)
-    model = ShellModel(mesh, Material(1.0, 0.5), h)
+    model = ShellModel(mesh, Material(1.0, 0.5, law=law), h)
     rest = model.stress_free_rest_state()
     z = mesh.points[mesh.triangles].mean(1)[:, 2]
-    s = np.where(z > 0.8 * radius, 1.2, 1.0)
+    s = np.where(z > 0.8 * radius, growth, 1.0)
     model.set_rest_state(RestState(rest.metric * s[:, None, None] ** 2, rest.curvature * s[:, None, None] ** 2,
                                    h / s**2))
     x = mesh.points.copy()
-    bump = np.exp(-((x[:, 2] - radius) / (0.3 * radius)) ** 2)
-    x += 0.05 * h * bump[:, None] * x / radius
+    cap = np.exp(-((x[:, 2] - radius) / (0.3 * radius)) ** 2)
+    x += bump * h * cap[:, None] * x / radius
     q = model.full(model.initial_unknowns())
     q[: 3 * mesh.n_vertices] = x.ravel()
     return model, q[model.free]
