@@ -142,7 +142,7 @@ def _run_points(spec, out, manifest, todo, client, bar):
     token = uuid.uuid4().hex[:8]
     futures = {}
     for p in todo:
-        manifest["state"][p.key]["status"] = "running"
+        manifest["state"][p.key]["status"] = "submitted"      # to the scheduler: queued or running
         futures[client.submit(run_point, str(out / POINTS / p.key), spec.scene, p.overrides(spec.fixed),
                               key=f"femshell-{p.key}-{token}", pure=False)] = p
     write_manifest(out, manifest)
@@ -223,7 +223,7 @@ def finish(out, manifest, stream, *, plot=True) -> int:
         except Exception as exc:      # noqa: BLE001 - the table is written; a plot that fails is a warning
             print(f"warning: the sweep's plots failed: {type(exc).__name__}: {exc}", file=sys.stderr)
     states = [s["status"] for s in manifest["state"].values()]
-    tally = ", ".join(f"{states.count(s)} {s}" for s in ("finished", "failed", "interrupted", "running", "pending")
+    tally = ", ".join(f"{states.count(s)} {s}" for s in ("finished", "failed", "interrupted", "submitted", "pending")
                       if states.count(s))
     print(f"points: {tally}; wrote {', '.join(str(Path(p).relative_to(out)) for p in paths)} in {out}/",
           file=stream, flush=True)
