@@ -3,7 +3,8 @@
 ``DIR/manifest.json`` — the sweep's identity (base scene, mode, axes, [set], the points' keys and
 values) and each point's state: ``pending``, ``submitted`` (queued or running on a worker),
 ``finished`` (the run ended: t_final or stationary), ``failed`` (a step failed, or an error outside
-the run), ``interrupted``; with the worker, the attempts and the last message. Written atomically by the client after every change.
+the run), ``interrupted``; with the worker, the attempts and the last message. Written atomically
+by the client after every change.
 
 ``DIR/results.csv`` (and ``results.parquet`` when pyarrow is importable) — one row per point: its key,
 the varied values, status, message, then the spec's measures (:data:`~femshell.sweep.spec.MEASURES`),
