@@ -21,7 +21,7 @@ import numpy as np
 
 from .._checks import finite, integer
 from .branch import Branch, ContinuationError
-from .corrector import _Engine, _SingularTangent, _StepFailure
+from .corrector import _Engine, _SingularTangent, _StepFailure, is_residual_problem
 from .newton import NewtonError, check_unknowns, minimize
 from .special_points import _Context
 
@@ -59,7 +59,9 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
     callback : ``callback(branch, row)`` after each accepted step; returning a true value stops.
     detect : locate folds, branch points and dips (needs ``n_eigs`` ≥ 1 for dips).
     n_eigs : eigenvalues of smallest magnitude recorded per step, ascending (0: none; the
-        inertia, i.e. the number of negative eigenvalues, is always recorded).
+        inertia, i.e. the number of negative eigenvalues, is always recorded). Ignored for a
+        non-gradient problem (``residual``/``jacobian``): its rows carry the sign of det J and the
+        columns of ``problem.stability(u)``.
     stop_at : kinds after whose detection to stop: "fold", "branch" (one, or a sequence).
     initial_tangent : (t_u, t_λ) to orient the start (used by :func:`switch_branch`).
     rtol, atol, xtol : corrector convergence, |r| ≤ rtol·scale + atol (scale: the largest
@@ -97,6 +99,8 @@ def continuation(problem, u0, lam0, *, ds, ds_min=None, ds_max=None, lam_stop=No
             ("max_steps", max_steps, 0, 10**7), ("n_eigs", n_eigs, 0, 1000),
             ("max_corrector_iterations", max_corrector_iterations, 1, 1000), ("fast_iterations", fast_iterations, 0, 1000)))
     n_eigs = min(n_eigs, n)   # a table column per eigenvalue: no more than there are
+    if is_residual_problem(problem):
+        n_eigs = 0            # J is not symmetric: its stability is the problem's (``problem.stability``)
     stop_at = _checked_stop_at(stop_at)
     log = log or None
     eng = _Engine(problem, weights, parameter_scale, backend=backend, rtol=rtol, atol=atol, xtol=xtol,
@@ -191,6 +195,8 @@ def _first_point(eng, problem, u0, lam0, direction, initial_tangent, backend):
             try:
                 A = eng.correct(u0, lam0, lam_fixed=lam0, update_scale=False)
             except _StepFailure:
+                if eng.general:     # no energy to minimise
+                    raise
                 eng.set(lam0)
                 try:
                     u_start = minimize(problem, u0, rtol=1e-10, log=None, backend=backend).u

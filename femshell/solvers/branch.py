@@ -68,6 +68,8 @@ class SpecialPoint:
             return (f"{self.label} between parameters {self.bracket[0]:.10g} and {self.bracket[1]:.10g}, not located "
                     f"({self.info.get('reason', '')}), negative eigenvalues {self.n_negative_before} -> "
                     f"{self.n_negative_after}")
+        if self.n_negative_before is None and not len(self.eigenvalues):     # a non-gradient problem's
+            return f"{self.label} at parameter {self.parameter:.10g} (s = {self.s:.6g}), det J changes sign"
         return (f"{self.label} at parameter {self.parameter:.10g} (s = {self.s:.6g}), multiplicity "
                 f"{self.multiplicity}, negative eigenvalues {self.n_negative_before} -> {self.n_negative_after}, "
                 f"eigenvalues {np.array2string(np.asarray(self.eigenvalues)[:6], precision=3)}")

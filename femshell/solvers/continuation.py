@@ -10,7 +10,17 @@ The object followed is a **parametrized problem**: anything with
 and optionally ``parameter_derivative(u)`` (g_λ = ∂r/∂λ; default a central difference in λ),
 ``dof_weights()`` (per-unknown weights of the arclength norm; default ones),
 ``parameter_scale`` (the scale of λ in that norm; default 1) and ``accept(u)`` (called after
-every accepted step). The branch r(u, λ) = 0 is parametrised by the arclength s in
+every accepted step). A **non-gradient** problem (a stationary state of dynamics that is not a
+gradient flow, the G+Smo style) has instead of ``energy``/``gradient``/``hessian``
+
+``residual(u)``, ``jacobian(u)``
+    r(u, λ) and J = ∂r/∂u (scipy sparse, any pattern, not symmetric), factorised by LU
+    (:mod:`femshell.solvers.lu`);
+
+and optionally ``stability(u)``, a dict with ``"stable"`` (bool or None) and scalar columns for the
+branch table (its own notion of stability: J's inertia means nothing here). Its branch points are
+sign changes of det J not explained by a fold (:mod:`.special_points`), its critical modes J's null
+vectors; ``n_eigs`` and the "BP?" dips do not apply. The branch r(u, λ) = 0 is parametrised by the arclength s in
 
 .. math:: \|(\delta u, \delta\lambda)\|^2 = \frac1n \sum_i w_i\, \delta u_i^2
           + \left(\frac{\delta\lambda}{\lambda_{\rm scale}}\right)^2 .

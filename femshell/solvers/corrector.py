@@ -10,6 +10,12 @@ The bordered system [[K, g_λ], [cᵀ, d]] [δu; δλ] = [b; β] is solved by bl
 factorisation of K (K x₁ = b, K x₂ = −g_λ, δλ = (β − cᵀx₁)/(d + cᵀx₂)), with the full (n+1)
 matrix (SuperLU) as fall-back. Step failures raise :class:`_StepFailure`; the caller halves ds.
 
+A **non-gradient** problem (a residual r(u, λ) and its Jacobian J = ∂r/∂u, not symmetric:
+``problem.residual``, ``problem.jacobian``; see :mod:`femshell.solvers.continuation`) runs through
+the same bordered solves on an LU factorisation of J (:class:`~femshell.solvers.lu.LUFactorization`);
+each point records the sign of det J instead of an inertia, and the problem's own
+``stability(u)`` (optional) instead of the eigenvalues of K.
+
 The corrector refactorises only when it pays (``linear_solver="krylov"``, the default): its
 iterations solve K x₁ = b and K x₂ = −g_λ by Krylov iterations preconditioned by the factorisation
 held from the last point or iteration (:class:`~femshell.solvers.krylov.HeldFactor`, CG or GMRES by
@@ -31,6 +37,7 @@ import scipy.sparse.linalg as spla
 
 from .krylov import HeldFactor
 from .linear import LinearSolverError, factorize
+from .lu import LUFactorization
 
 #: up to this many unknowns the smallest eigenvalues come from a dense eigensolver
 DENSE_EIG_LIMIT = 50
@@ -71,6 +78,8 @@ class _Point:
     eig_offset: int | None = None            # eigenvalues[i] is the (eig_offset + i)-th smallest
     energy: float = math.nan
     tangent_failed: bool = False
+    det_sign: int | None = None              # sign of det J (non-gradient problems; 0: J singular)
+    stability: dict | None = None            # problem.stability(u) (non-gradient problems)
     # both join the branch's residual scale when the point is accepted (not for trial or location points)
     predictor_residual: float = 0.0
     parameter_residual: float = 0.0          # |∂r/∂λ| · parameter_scale
@@ -82,6 +91,7 @@ class _Engine:
     def __init__(self, problem, weights, parameter_scale, *, backend, rtol, atol, xtol, max_iter, fd_step,
                  n_eigs, log, linear_solver=None):
         self.p = problem
+        self.general = is_residual_problem(problem)
         self.lam_scale = float(parameter_scale)
         self.w = np.asarray(weights, float)
         self.n = len(self.w)
@@ -98,7 +108,9 @@ class _Engine:
         linear_solver = linear_solver or DEFAULT_LINEAR_SOLVER
         if linear_solver not in LINEAR_SOLVERS:
             raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
-        self._held = HeldFactor(rtol=CORRECTOR_KRYLOV_RTOL) if linear_solver == "krylov" else None
+        # the held factorisation preconditions CG/GMRES by a symmetric factor: gradient problems only
+        self._held = HeldFactor(rtol=CORRECTOR_KRYLOV_RTOL) if linear_solver == "krylov" and not self.general \
+            else None
         self.counts = {"gradient": 0, "hessian": 0, "factorize": 0, "bordered_full": 0, "eigen": 0,
                        "krylov_solves": 0, "krylov_iterations": 0}
 
@@ -123,9 +135,9 @@ class _Engine:
     def residual(self, u, lam):
         self.set(lam)
         self.counts["gradient"] += 1
-        r = np.asarray(self.p.gradient(u), float)
+        r = np.asarray(self.p.residual(u) if self.general else self.p.gradient(u), float)
         if r.shape != (self.n,):
-            raise ValueError(f"problem.gradient(u) returned shape {r.shape} for {self.n} unknowns; it must return "
+            raise ValueError(f"problem.{'residual' if self.general else 'gradient'}(u) returned shape {r.shape} for {self.n} unknowns; it must return "
                              f"one value per unknown (is u0 the problem's vector of unknowns?)")
         return r
 
@@ -149,15 +161,23 @@ class _Engine:
     def hessian(self, u, lam):
         self.set(lam)
         self.counts["hessian"] += 1
-        K = sp.csr_matrix(self.p.hessian(u))
+        K = sp.csr_matrix(self.p.jacobian(u) if self.general else self.p.hessian(u))
         if K.shape != (self.n, self.n):
-            raise ValueError(f"problem.hessian(u) returned shape {K.shape} for {self.n} unknowns; it must be "
+            raise ValueError(f"problem.{'jacobian' if self.general else 'hessian'}(u) returned shape {K.shape} for {self.n} unknowns; it must be "
                              f"({self.n}, {self.n})")
         return K
 
     def factor(self, K):
-        """Symmetric-indefinite factorisation of K, or None when K is (numerically) singular."""
+        """Symmetric-indefinite factorisation of K (LU of J for a non-gradient problem), or None when it is
+        (numerically) singular."""
         self.counts["factorize"] += 1
+        if self.general:
+            self.release()
+            try:
+                self._fac = LUFactorization(K)
+            except LinearSolverError:
+                self._fac = None
+            return self._fac
         try:
             self._fac = factorize(K, kind="symmetric_indefinite", backend=self.backend, reuse=self._fac)
         except LinearSolverError:
@@ -365,7 +385,11 @@ class _Engine:
         return P
 
     def finish(self, P, ref=None, direction=1.0, n_eigs=None, vectors=False):
-        """Hessian, inertia, tangent (oriented along ``ref`` or ``direction``), eigenvalues, energy."""
+        """Hessian, inertia, tangent (oriented along ``ref`` or ``direction``), eigenvalues, energy.
+
+        For a non-gradient problem: the Jacobian, the sign of its determinant (``det_sign``, 0 when
+        J is singular) and the tangent; no eigenvalues, no energy (NaN).
+        """
         if P.K is None:
             P.K = self.hessian(P.u, P.lam)
             P.fac = self.factor(P.K)
@@ -373,7 +397,11 @@ class _Engine:
         P.n_negative = None
         if fac is not None and fac is not self._fac:
             fac = None  # refactored since: not this point's factorisation
-        if fac is not None and fac.inertia is not None:
+        if self.general:
+            if fac is None:
+                fac = self.factor(P.K)
+            P.det_sign = 0 if fac is None else fac.det_sign
+        elif fac is not None and fac.inertia is not None:
             P.n_negative = int(fac.inertia[1])
         gl = self.dlam(P.u, P.lam)
         if ref is None:
@@ -394,15 +422,49 @@ class _Engine:
             P.t_u, P.t_lam = ref[0].copy(), float(ref[1])
             P.tangent_failed = True
         P.parameter_residual = float(np.linalg.norm(gl)) * self.lam_scale
-        k = self.n_eigs if n_eigs is None else n_eigs
+        k = 0 if self.general else (self.n_eigs if n_eigs is None else n_eigs)
         if k > 0:
             P.eigenvalues, P.eigenvectors, P.eig_offset = self.eigs(P.K, k, vectors=vectors, fac=fac)
             if P.n_negative is None and P.eigenvalues is not None and P.eig_offset is not None:
                 P.n_negative = P.eig_offset + int((P.eigenvalues < 0).sum())
         self.set(P.lam)
-        P.energy = float(self.p.energy(P.u))
+        P.energy = math.nan if self.general else float(self.p.energy(P.u))
         P.fac = None  # the shared factorisation object is refactored by the next point
         return P
+
+    def stability(self, P):
+        """``problem.stability(u)`` at P (a dict with "stable"), cached on P; None when the problem has none."""
+        fn = getattr(self.p, "stability", None)
+        if not self.general or not callable(fn):
+            return None
+        if P.stability is None:
+            self.set(P.lam)
+            st = fn(P.u)
+            if not isinstance(st, dict) or "stable" not in st:
+                raise TypeError("problem.stability(u) must return a dict with a 'stable' entry (bool)")
+            P.stability = st
+        return P.stability
+
+    def null_vector(self, P, iterations=4, transpose=False):
+        """The right (``transpose``: left) null vector of J at P: inverse iteration on its LU (on J plus a
+        tiny shift where J is exactly singular), Euclidean-normalised with its largest entry positive; None
+        when it cannot be computed."""
+        if P.K is None:
+            P.K = self.hessian(P.u, P.lam)
+        fac = self.factor(P.K)
+        if fac is None:   # exactly singular: a nearby shift
+            scale = max(abs(P.K).max(), 1e-300)
+            fac = self.factor(P.K + 1e-12 * scale * sp.identity(self.n, format="csr"))
+            if fac is None:
+                return None
+        x = np.random.default_rng(0).standard_normal(self.n)
+        for _ in range(iterations):
+            x = fac.solve(x, transpose=transpose)
+            nx = np.linalg.norm(x)
+            if not (np.isfinite(nx) and nx > 0):
+                return None
+            x /= nx
+        return x if x[np.argmax(np.abs(x))] > 0 else -x
 
     def release(self):
         """Free the shared factorisation (PARDISO memory)."""
@@ -413,3 +475,8 @@ class _Engine:
                 pass
             self._fac = None
 
+
+def is_residual_problem(problem) -> bool:
+    """True for a non-gradient problem: it has ``residual`` and ``jacobian`` (and no ``hessian``)."""
+    return (callable(getattr(problem, "residual", None)) and callable(getattr(problem, "jacobian", None))
+            and not callable(getattr(problem, "hessian", None)))

@@ -7,6 +7,14 @@
 * *possible symmetric bifurcation* ("BP?"): an eigenvalue dips towards zero between three
   accepted points without changing sign; flagged at the vertex of the fitted parabola.
 
+For a **non-gradient** problem (residual and unsymmetric Jacobian J, no inertia) the branch points
+are the sign changes of τ = sign(det J)·sign(t_λ), the sign of the determinant of the augmented
+Jacobian [[J, g_λ], [tᵀ, 0]] (Cramer: t_λ = det J / det of it), which stays non-zero at a fold;
+each is located by Illinois on the smooth test function ψ = −1/(cᵀ J⁻¹ b) = det J / det [[J, b],
+[cᵀ, 0]] with b, c the right and left null vectors of J at an end of the step (ψ vanishes where
+J is singular, and changes sign with det J). Its critical mode is the null vector of J there;
+its multiplicity is reported as 1 (a sign change detects an odd number of crossings).
+
 The multiplicity counts the eigenvalues whose straight-line extrapolation in σ vanishes within
 ``cluster_tol`` × max(|λ*|, λ_scale) of the located point (cos nθ, sin nθ of a disk: one double
 point). :class:`_Context` also keeps the branch's table rows.
@@ -48,6 +56,11 @@ class _Context:
     def add_row(self, P, s, step, ds, special=""):
         row = {"step": step, "s": s, "parameter": P.lam, "energy": P.energy, "n_negative": P.n_negative,
                "stable": None if P.n_negative is None else P.n_negative == 0}
+        if self.eng.general:
+            stability = self.eng.stability(P) or {"stable": None}
+            row["stable"] = None if stability["stable"] is None else bool(stability["stable"])
+            row["det_sign"] = P.det_sign
+            row.update({k: v for k, v in stability.items() if k != "stable"})
         for i in range(self.n_eigs):
             ev = P.eigenvalues
             row[f"eig_{i}"] = float(ev[i]) if ev is not None and i < len(ev) else math.nan
@@ -111,7 +124,10 @@ class _Context:
         self._step_end = B
         try:
             fold = np.isfinite(A.t_lam) and np.isfinite(B.t_lam) and A.t_lam * B.t_lam < 0
-            if fold:
+            if self.eng.general:
+                kind = "fold" if fold else "branch"
+                found += self._detect_general(A, B, s_A, sigma_B, step, cache, fold)
+            elif fold:
                 kind = "fold"
                 found += self._locate_fold(A, B, s_A, sigma_B, step, cache)
             elif A.n_negative is not None and B.n_negative is not None and A.n_negative != B.n_negative:
@@ -194,6 +210,7 @@ class _Context:
                 side = +1
             c_prev = c
         self.last_error = abs(b - a) if c_prev is None or abs(b - a) <= tol else abs(c - c_prev)
+        self.last_bracket = (a, b)
         return best, (a, b)
 
     def _locate_fold(self, A, B, s_A, sigma_B, step, cache):
@@ -294,6 +311,8 @@ class _Context:
     def _special(self, kind, A, P, sig, s_A, step, k, n_before, n_after, bracket, crit=None, ref=None):
         """Build a SpecialPoint at P: eigenpairs, critical mode(s), multiplicity."""
         eng = self.eng
+        if eng.general:
+            return self._special_general(kind, P, sig, s_A, step, bracket)
         k = max(k, 4)
         self._with_eigs(P, k, vectors=True)
         w, V, off = P.eigenvalues, P.eigenvectors, P.eig_offset
@@ -343,6 +362,85 @@ class _Context:
                          weights=eng.w, parameter_scale=eng.lam_scale)
         self.branch.special_points.append(p)
         self.add_row(P, s_A + sig, step, ds=sig, special=p.label)
+        if self.log:
+            self.log(f"    {p.summary()}")
+        return p
+
+    # ---- non-gradient problems: det J and the augmented determinant's sign (module docstring)
+    @staticmethod
+    def _bp_sign(P):
+        """sign det [[J, g_λ], [tᵀ, 0]] = sign(det J)·sign(t_λ) at P (0 when unknown)."""
+        if not P.det_sign or not np.isfinite(P.t_lam) or P.t_lam == 0:
+            return 0
+        return int(P.det_sign * np.sign(P.t_lam))
+
+    def _detect_general(self, A, B, s_A, sigma_B, step, cache, fold):
+        """Folds (t_λ changes sign) and branch points (τ changes sign) in the step A → B, located."""
+        bp = self._bp_sign(A) * self._bp_sign(B) < 0
+        if not fold:
+            return self._locate_det_crossing(A, 0.0, A, sigma_B, B, s_A, step, cache) if bp else []
+        out = self._locate_fold(A, B, s_A, sigma_B, step, cache)
+        fold_pt = out[-1]
+        lo, hi = sorted(fold_pt.info["bracket_sigma"])
+        P_lo, P_hi = self.point_at(A, lo, 0, cache), self.point_at(A, hi, 0, cache)
+        if lo > 0 and self._bp_sign(A) * self._bp_sign(P_lo) < 0:
+            out = self._locate_det_crossing(A, 0.0, A, lo, P_lo, s_A, step, cache) + out
+        if hi < sigma_B and self._bp_sign(P_hi) * self._bp_sign(B) < 0:
+            out += self._locate_det_crossing(A, hi, P_hi, sigma_B, B, s_A, step, cache)
+        return out
+
+    def _psi(self, P, b, c):
+        """ψ = −1/(cᵀ J⁻¹ b) at P: zero where J is singular, of the sign of det J near there."""
+        eng = self.eng
+        if P.K is None:
+            P.K = eng.hessian(P.u, P.lam)
+        fac = eng.factor(P.K)
+        if fac is None:
+            return 0.0
+        q = float(c @ fac.solve(b))
+        if not np.isfinite(q) or q == 0:
+            raise _StepFailure("the branch-point test function is undefined (its border is singular)")
+        return -1.0 / q
+
+    def _locate_det_crossing(self, A, sa, Pa, sb, Pb, s_A, step, cache):
+        """The branch point between Pa (arclength sa from A) and Pb where det J changes sign."""
+        sigma_end = self.eng.dot(A.t_u, A.t_lam, Pb.u - A.u, Pb.lam - A.lam)
+        for end in (Pb, Pa):
+            b, c = self.eng.null_vector(end), self.eng.null_vector(end, transpose=True)
+            if b is None or c is None:
+                continue
+            fa, fb = self._psi(Pa, b, c), self._psi(Pb, b, c)
+            if fa * fb < 0:
+                break
+        else:
+            return [self._unlocated("branch", A, Pb, s_A, sigma_end, step,
+                                    "det J changes sign but its test function does not")]
+
+        def f(sig):
+            P = self.point_at(A, sig, 0, cache)
+            return self._psi(P, b, c), P
+
+        best, (a, b_) = self._illinois(f, sa, fa, sb, fb)
+        if best is None:
+            best = (sb, fb, Pb)
+        sig, _, P = best
+        return [self._special("branch", A, P, sig, s_A, step, 0, None, None,
+                              (self.point_at(A, min(a, b_), 0, cache).lam if min(a, b_) > 0 else Pa.lam,
+                               self.point_at(A, max(a, b_), 0, cache).lam))]
+
+    def _special_general(self, kind, P, sig, s_A, step, bracket):
+        """A SpecialPoint of a non-gradient problem: the null vector of J as its mode, multiplicity 1."""
+        mode = self.eng.null_vector(P)
+        modes = np.zeros((len(P.u), 0)) if mode is None else mode[:, None]
+        info = {"sigma": sig, "sigma_error": getattr(self, "last_error", math.nan),
+                "bracket_sigma": getattr(self, "last_bracket", (sig, sig))}
+        p = SpecialPoint(kind=kind, parameter=float(P.lam), s=s_A + sig, u=P.u.copy(), tangent=(P.t_u, P.t_lam),
+                         eigenvalues=np.zeros(0), modes=modes, multiplicity=modes.shape[1], n_negative_before=None,
+                         n_negative_after=None, step=step, bracket=tuple(sorted(bracket)), info=info,
+                         weights=self.eng.w, parameter_scale=self.eng.lam_scale)
+        self.branch.special_points.append(p)
+        self.add_row(P, s_A + sig, step, ds=sig, special=p.label)
+        p.info["stability"] = None if P.stability is None else dict(P.stability)
         if self.log:
             self.log(f"    {p.summary()}")
         return p
