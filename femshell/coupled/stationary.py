@@ -60,6 +60,19 @@ class StationaryProblem:
         self.free_index = shell.assembler.free_index
         self.force_unit = strain_force_unit(shell, growth, params)
 
+    def set_params(self, params):
+        """Take new model parameters: the stretch law s(c), the target thickness h0 and the force unit
+        follow (the mesh, the boundary conditions and the rest-curvature law stay)."""
+        if (params.thickness_mode, params.rest_curvature, params.natural_curvature) != (
+                self.params.thickness_mode, self.params.rest_curvature, self.params.natural_curvature):
+            raise ValueError("set_params changes the model's parameters, not its thickness or rest-curvature law")
+        h0_changed = params.h0 != self.params.h0
+        self.params = params
+        self.growth.stretch_law = params.stretch
+        self.growth.h0 = params.h0
+        if h0_changed:      # the unit strain's force depends on the thickness only
+            self.force_unit = strain_force_unit(self.shell, self.growth, params)
+
     @classmethod
     def of_loop(cls, loop) -> "StationaryProblem":
         """The problem of a :class:`~femshell.coupled.CoupledLoop` (its shell, growth, parameters, mesh)."""
