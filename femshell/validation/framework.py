@@ -38,6 +38,7 @@ CASES = {
     "extremes": "extremes",
     "sphere-pressure-buckling": "sphere_pressure_buckling",
     "cylinder-axial-buckling": "cylinder_axial_buckling",
+    "uniform-sphere-pattern": "uniform_sphere_pattern",
 }
 LEVELS = ("quick", "full")
 
