@@ -13,10 +13,9 @@ import pytest
 
 from femshell.coupled import CoupledLoop, InitialSpot, MechanochemicalModel, StationaryProblem, TimeStepping, \
     stationary_state
-from femshell.coupled.pattern_continuation import (PARAMETERS, PatternParameter, continue_pattern,
-                                                   critical_mode_fields, pattern_measures)
+from femshell.coupled.pattern_continuation import PARAMETERS, PatternParameter, continue_pattern, critical_mode_fields
 from femshell.mesh.generators import sphere
-from femshell.scene.pattern_output import write_pattern_branch
+from femshell.scene.pattern_output import pattern_measures, write_pattern_branch
 
 R = 5.0
 
@@ -71,7 +70,8 @@ def test_branch_in_w_ends_at_the_root_newton_finds_there(spot):
     params = problem.params
     w1 = params.w * 1.02
     try:
-        branch = continue_pattern(problem, root.u, root.c, "w", ds=0.02, lam_stop=w1, max_steps=10, n_modes=3)
+        branch = continue_pattern(problem, root.u, root.c, "w", ds=0.02, lam_stop=w1, max_steps=10, n_modes=3,
+                                  record=lambda z: pattern_measures(problem, z))
         assert branch.status == "lam_stop", branch.message
         z_end, lam_end = branch.states[-1]
         assert lam_end == pytest.approx(w1, rel=1e-12)
@@ -110,7 +110,7 @@ def test_the_spot_s_fold_in_w_is_where_the_coupled_dynamics_loses_stability(spot
     params = problem.params
     try:
         branch = continue_pattern(problem, root.u, root.c, "w", ds=0.02, max_steps=20, n_modes=2,
-                                  stop_at="fold")
+                                  stop_at="fold", record=lambda z: pattern_measures(problem, z))
         assert branch.status == "fold", branch.message
         (lp,) = branch.special_points
         assert lp.kind == "fold" and lp.located and params.w < lp.parameter < 1.1 * params.w

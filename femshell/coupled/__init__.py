@@ -13,7 +13,8 @@ control, the staggered loop and what it reports.
 * :mod:`femshell.coupled.stationary`: stationary states as one system in (u, c), its exact Jacobian
   (:mod:`femshell.coupled.stationary_jacobian`) and Newton on it (:func:`stationary_state`);
 * :mod:`femshell.coupled.stationary_stability`: their stability in the coupled dynamics (:func:`coupled_stability`);
-* :mod:`femshell.coupled.pattern_continuation`: their continuation in a model parameter (:func:`continue_pattern`).
+* :mod:`femshell.coupled.pattern_continuation`: their continuation in a model parameter
+  (``continue_pattern``, imported from there: it loads the continuation machinery).
 """
 
 from ..growth import REST_CURVATURES, GrowthRestState
@@ -21,7 +22,6 @@ from .initial import InitialSpot, gaussian_spot
 from .loop import CoupledLoop
 from .observers import LoopObservers
 from .parameters import MechanochemicalModel
-from .pattern_continuation import PatternParameter, continue_pattern
 from .records import CoupledError, RunResult, StepRecord
 from .state import STATE_VERSION
 from .stationary import StationaryProblem, StationaryResult, stationary_state
@@ -33,5 +33,4 @@ __all__ = ["MechanochemicalModel", "GrowthRestState", "InitialSpot", "gaussian_s
            "StepRecord", "RunResult", "CoupledError", "CoupledLoop", "LoopObservers", "REST_CURVATURES",
            "feedback_gain", "feedback_step_limit", "stable_extrapolation", "SOURCE_RULES", "STATE_VERSION",
            "STEP_CONTROLS", "held_source_error", "error_step_factor",
-           "StationaryProblem", "StationaryResult", "stationary_state", "CoupledStability", "coupled_stability",
-           "PatternParameter", "continue_pattern"]
+           "StationaryProblem", "StationaryResult", "stationary_state", "CoupledStability", "coupled_stability"]

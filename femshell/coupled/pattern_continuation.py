@@ -14,6 +14,7 @@ det [[J, ∂F/∂λ], [tᵀ, 0]] (:mod:`femshell.solvers.special_points`); the s
 the coupled dynamics' (:func:`~femshell.coupled.stationary_stability.coupled_stability`: the leading
 eigenvalues μ of S v = μ M v and the shell Hessian's inertia), and the critical mode at a special point
 is J's null vector, split into the concentration and the shape (:func:`critical_mode_fields`).
+Not re-exported by :mod:`femshell.coupled`, which does not load the continuation machinery.
 """
 
 from __future__ import annotations
@@ -24,13 +25,12 @@ from dataclasses import replace
 import numpy as np
 
 from .._checks import finite as _finite, integer as _integer
-from ..analysis.spots import find_spots
 from ..chemistry import curvature_source
 from ..geometry import vertex_normals
 from ..solvers.continuation import continuation
 from .stationary_stability import coupled_stability
 
-__all__ = ["PARAMETERS", "PatternParameter", "pattern_measures", "continue_pattern", "critical_mode_fields"]
+__all__ = ["PARAMETERS", "PatternParameter", "continue_pattern", "critical_mode_fields"]
 
 #: the parameters a pattern can be followed in: name -> (meaning, how ∂F/∂λ is computed)
 PARAMETERS = {
@@ -154,32 +154,24 @@ class PatternParameter:
         return out
 
 
-def pattern_measures(problem, z) -> dict:
-    """Columns of a branch row: max c, the patterned area A_l = |{c > c*}| on the deformed surface (exact
-    for P1 c, no region ignored), the number of spots and the spot radius √(A_l/(π N_sp)) (NaN without spots)."""
-    u, c = problem.split(z)
-    points = problem.shell.positions(u)
-    m = find_spots(points, problem.triangles, c, problem.params.c_star, min_area=0.0)
-    return {"max_c": float(np.max(c)), "patterned_area": float(m.area_low), "n_spots": int(m.n_spots),
-            "spot_radius": float(m.spot_radius)}
-
-
 def continue_pattern(problem, u, c, name, *, ds, lam_stop=None, max_steps=100, n_modes=4, length_scale=None,
-                     c_scale=None, parameter_scale=None, label=None, log=None, **options):
+                     c_scale=None, parameter_scale=None, record=None, label=None, log=None, **options):
     """Follow the stationary state (u, c) of ``problem`` in the parameter ``name`` (:data:`PARAMETERS`).
 
     (u, c) must be a root at the problem's current parameters (e.g. :func:`stationary_state`'s; the
     first point is corrected by Newton at fixed λ). ``options`` go to
     :func:`~femshell.solvers.continuation.continuation` (``ds_max``, ``direction``, ``stop_at``,
-    ``rtol``, ...). Returns the :class:`~femshell.solvers.continuation.Branch`: its rows carry
-    :func:`pattern_measures` and :meth:`PatternParameter.stability`; the parameter is left at the
-    branch's last point.
+    ``rtol``, ...). ``record(z) -> dict`` adds columns to each row (default: max c;
+    :func:`femshell.scene.pattern_output.pattern_measures` gives the pattern's area and spot radius).
+    Returns the :class:`~femshell.solvers.continuation.Branch`: its rows carry those columns and
+    :meth:`PatternParameter.stability`; the parameter is left at the branch's last point.
     """
     pp = PatternParameter(problem, name, length_scale=length_scale, c_scale=c_scale,
                           parameter_scale=parameter_scale, n_modes=n_modes)
     z0 = problem.join(u, c)
     return continuation(pp, z0, pp.parameter, ds=ds, lam_stop=lam_stop, max_steps=max_steps,
-                        record=lambda z: pattern_measures(problem, z), label=label or name, log=log, **options)
+                        record=record or (lambda z: {"max_c": float(np.max(problem.split(z)[1]))}),
+                        label=label or name, log=log, **options)
 
 
 def critical_mode_fields(problem, z, mode) -> dict:

@@ -21,14 +21,26 @@ from pathlib import Path
 import numpy as np
 
 from .. import io as fio
+from ..analysis.spots import find_spots
 from ..coupled.pattern_continuation import PARAMETERS, critical_mode_fields
 from ..io.branches import _slug
 from ..mesh.io import write_mesh
 
-__all__ = ["write_pattern_branch", "DIAGRAM_COLUMNS"]
+__all__ = ["write_pattern_branch", "pattern_measures", "DIAGRAM_COLUMNS"]
 
 #: the columns drawn against the parameter, one diagram each
 DIAGRAM_COLUMNS = {"max_c": "max c", "spot_radius": "spot radius", "patterned_area": "patterned area (c > c*)"}
+
+
+def pattern_measures(problem, z) -> dict:
+    """Columns of a branch row (``record`` of :func:`~femshell.coupled.pattern_continuation.continue_pattern`):
+    max c, the patterned area A_l = |{c > c*}| on the deformed surface (exact for P1 c, no region ignored),
+    the number of spots and the spot radius √(A_l/(π N_sp)) (NaN without spots)."""
+    u, c = problem.split(z)
+    points = problem.shell.positions(u)
+    m = find_spots(points, problem.triangles, c, problem.params.c_star, min_area=0.0)
+    return {"max_c": float(np.max(c)), "patterned_area": float(m.area_low), "n_spots": int(m.n_spots),
+            "spot_radius": float(m.spot_radius)}
 
 
 def _state_fields(problem, z, modes):
