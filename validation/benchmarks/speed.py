@@ -22,9 +22,13 @@ printed before and after: on a shared machine quote CPU seconds and ratios, not 
   and refactorisation, two stable Newton solves with direct solves (old) and with the held factor
   as a Krylov preconditioner (new: factorisations, Krylov iterations, CPU per Newton iteration),
   and ``--coupled-steps`` steps of the coupled loop on both paths.
+* ``--newton``: a Newton iteration (:mod:`speed_newton`): wall and CPU seconds per iteration of
+  today's path (JAX element Hessian, a factorisation per iteration, MKL sequential) and the new
+  ones (compiled Hessian and threads; direct and Krylov), each in a fresh process, with ratios and
+  each part's share (element Hessian, assembly, factorisation, back-substitution, Krylov, line search).
 
     python validation/benchmarks/speed.py [--vertices 25000] [--setup] [--scaling [6000 12000 25000 50000]]
-                                          [--solve [--coupled-steps 4]]
+                                          [--solve [--coupled-steps 4]] [--newton]
 
 More element-level rows are functions of the form ``section(model, u) -> [(label, old, new), ...]``
 in :data:`SECTIONS`, with ``old``/``new`` the (cpu, wall) pairs of :func:`measure`.
@@ -46,6 +50,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+import speed_newton  # noqa: E402
 import speed_solve  # noqa: E402
 from shell_newton import grown_sphere  # noqa: E402
 
@@ -185,12 +190,15 @@ def main(argv=None):
     ap.add_argument("--scaling", type=int, nargs="*", help=f"element Hessian per size (default {SCALING_SIZES})")
     ap.add_argument("--solve", action="store_true", help="factorisation, Krylov and Newton rows (speed_solve)")
     ap.add_argument("--coupled-steps", type=int, default=4, help="coupled steps per path with --solve (0: none)")
+    ap.add_argument("--newton", action="store_true", help="a Newton iteration per path and its parts (speed_newton)")
     args = ap.parse_args(argv)
     if args.coupled_steps < 0:
         ap.error(f"--coupled-steps must be >= 0, got {args.coupled_steps}")
     sizes = SCALING_SIZES if args.scaling == [] else args.scaling
     if args.vertices < 100 or (sizes and min(sizes) < 100):
         ap.error(f"--vertices and --scaling take vertex counts >= 100, got {args.vertices} and {sizes}")
+    if args.newton:          # first: its fresh processes each load MKL in their own mode
+        speed_newton.print_table(speed_newton.measure_paths(args.vertices, list(speed_newton.PATHS)))
     import femshell
     femshell.configure()
     print(f"load average {os.getloadavg()[0]:.2f}; old = JAX element Hessian, new = compiled C (fast_element)")
