@@ -284,6 +284,39 @@ def test_refactorizer_inertia_through_a_loss_of_definiteness(backend):
     r.free()
 
 
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pardiso unavailable")
+def test_a_failed_cholesky_keeps_its_analysis_for_the_next_matrix(monkeypatch):
+    """The shift search's first attempts fail: the pattern is analysed once, by the first attempt, and
+    the Cholesky that then succeeds refactorises it, giving the same solution bit for bit as a fresh
+    factorisation (a Cholesky's analysis depends on the pattern only)."""
+    from femshell.solvers import pardiso
+
+    analyses = []
+    factor = pardiso._Pardiso.factor
+    monkeypatch.setattr(pardiso._Pardiso, "factor", lambda self, U, analyse: (analyses.append(analyse),
+                                                                           factor(self, U, analyse))[1])
+    A = laplacian_2d(12, neumann=False).tocsr()
+    ev = np.linalg.eigvalsh(A.toarray())
+    b = np.random.default_rng(3).standard_normal(A.shape[0])
+    r = Refactorizer("pardiso")
+    for sigma in (0.5 * (ev[1] + ev[2]), 0.5 * (ev[0] + ev[1])):          # two failures
+        assert r.positive_definite((A - sigma * sp.identity(A.shape[0])).tocsr()) is None
+    K = (A - 0.5 * ev[0] * sp.identity(A.shape[0])).tocsr()
+    f = r.positive_definite(K)
+    assert analyses == [True, False, False] and f.analysis_time == 0.0
+    fresh = factorize(K, "spd", "pardiso")
+    assert np.array_equal(f.solve(b), fresh.solve(b))
+    # through __call__: a failed first Cholesky, LDLᵀ for it and the next; Cholesky again on the kept analysis
+    analyses.clear()
+    r2 = Refactorizer("pardiso")
+    r2((A - 0.5 * (ev[0] + ev[1]) * sp.identity(A.shape[0])).tocsr())
+    r2(K)
+    assert r2(K) is r2._spd and r2.counts == {"cholesky": 1, "cholesky_failed": 1, "ldlt": 2}
+    assert analyses == [True, True, False, False] and np.array_equal(r2.last.solve(b), fresh.solve(b))
+    for x in (r, r2, fresh):
+        x.free()
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_positive_definite_answers_without_an_ldlt(backend):
     """The shift search's question, "is A - sigma I positive definite?", against dense eigenvalues:

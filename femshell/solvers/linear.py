@@ -174,7 +174,12 @@ class Factorization:
         self._impl = _Pardiso(kind, pardiso_matching) if self.backend == "pardiso" else None
         self._lu = None
         self._K = None
-        self.refactor(K)
+        try:
+            self.refactor(K)
+        except LinearSolverError as exc:
+            # the symbolic analysis may be done: a caller refactorising the same pattern keeps it (Refactorizer)
+            exc.factorization = self
+            raise
 
     # ---- factorisation
     def refactor(self, K) -> "Factorization":
@@ -419,6 +424,13 @@ def _proves_positive_definite(inertia) -> bool:
     return inertia is not None and inertia[1] == 0 and inertia[2] == 0
 
 
+def _analysed(exc: LinearSolverError, held: Factorization | None) -> Factorization | None:
+    """The Cholesky to refactorise next after ``exc``: a new factorisation that failed keeps its symbolic
+    analysis of the pattern (a Cholesky's depends on the pattern only), so the next matrix of the pattern
+    costs a numerical factorisation, not a new analysis as well; else the one held, refactorised in place."""
+    return getattr(exc, "factorization", None) or held
+
+
 class Refactorizer:
     """Factorises a sequence of symmetric matrices with one sparsity pattern and reports their inertia.
 
@@ -477,8 +489,9 @@ class Refactorizer:
                 self._spd = factorize(K, kind="spd", backend=self.backend, reuse=self._spd)
                 self.counts["cholesky"] += 1
                 return self._spd
-            except LinearSolverError:
+            except LinearSolverError as exc:
                 # not positive definite, or singular: LDLᵀ below says which (or raises)
+                self._spd = _analysed(exc, self._spd)
                 self.counts["cholesky_failed"] += 1
                 self._try_spd = False
         self._ldl = factorize(K, kind="symmetric_indefinite", backend=self.backend, reuse=self._ldl)
@@ -504,8 +517,9 @@ class Refactorizer:
             else:
                 f = self._spd = factorize(K, kind="spd", backend=self.backend, reuse=self._spd)
                 self.counts["cholesky"] += 1
-        except LinearSolverError:          # not positive definite, or singular
+        except LinearSolverError as exc:   # not positive definite, or singular
             if self.cholesky_first:
+                self._spd = _analysed(exc, self._spd)
                 self.counts["cholesky_failed"] += 1
             return None
         self._last = f
