@@ -480,14 +480,14 @@ def test_the_shift_search_keeps_the_hessians_pattern():
     """K + τD as a sparse sum dropped K's explicit zeros (those of a flat shell's coupling entries):
     each trial, and each step of a load path, handed the Cholesky a new pattern to analyse."""
     from femshell.solvers.linear import Refactorizer
-    from femshell.solvers.newton import _shift_to_positive
+    from femshell.solvers.negative_curvature import shift_to_positive
 
     K = sp.csr_matrix((np.array([-1.0, 0.0, 0.0, 2.0]), np.array([0, 1, 0, 1]), np.array([0, 2, 4])), shape=(2, 2))
     seen = []
     f = Refactorizer()
     real = f.positive_definite
     f.positive_definite = lambda A: (seen.append((A.nnz, A.toarray())), real(A))[1]
-    fac, tau = _shift_to_positive(K, f, {"factorize": 0.0})
+    fac, tau = shift_to_positive(K, f, {"factorize": 0.0})
     assert fac is not None and tau > 0.5
     assert all(nnz == 4 for nnz, _ in seen)                  # the explicit zeros are kept
     np.testing.assert_array_equal(seen[-1][1], np.diag([-1.0 + tau, 2.0 + 2.0 * tau]))

@@ -42,6 +42,12 @@ In a sequence of solves (time or load stepping) the caller keeps the factorisati
 also start each solve with quasi-Newton iterations on it (``quasi_newton``,
 :func:`lagged_quasi_newton`), which do not even assemble a Hessian.
 
+This module is the driver (:func:`minimize`) and the load stepping on it (:func:`follow_load`); the
+parts are modules of their own, their public names importable from here too: the line search
+(:mod:`~femshell.solvers.line_search`), the shift and the step off a saddle
+(:mod:`~femshell.solvers.negative_curvature`), the quasi-Newton start
+(:mod:`~femshell.solvers.quasi_newton`), the result and the error (:mod:`~femshell.solvers.newton_result`).
+
 Example
 -------
 >>> import numpy as np, scipy.sparse as sp
@@ -58,52 +64,22 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
 from .._checks import finite, integer
 from .krylov import HeldFactor
-from .linear import LinearSolverError, Refactorizer, smallest_eigenvalues
+from .line_search import line_search
+from .linear import LinearSolverError, Refactorizer
+from .negative_curvature import ESCAPE_AMPLITUDES, escape_saddle, is_saddle, shift_to_positive
+from .newton_result import NewtonError, NewtonResult, newton_result
+from .quasi_newton import lagged_quasi_newton
 
-
-class NewtonError(RuntimeError):
-    """Newton did not converge; ``result`` holds the last iterate and the history, ``stalled`` says
-    whether it gave up for lack of progress (``minimize(stall=...)``)."""
-
-    def __init__(self, message, result=None, stalled=False):
-        super().__init__(message)
-        self.result = result
-        self.stalled = stalled
-
-
-@dataclass
-class NewtonResult:
-    u: np.ndarray
-    converged: bool
-    iterations: int
-    energy: float
-    residual: float
-    residual_scale: float
-    n_negative: int | None = None
-    stable: bool | None = None
-    history: list = field(default_factory=list)
-    times: dict = field(default_factory=dict)
-    #: iterations of the quasi-Newton phase on a held factorisation (``minimize(quasi_newton=...)``)
-    quasi_newton_iterations: int = 0
-    #: numerical factorisations done by this solve (Hessians, failed Cholesky attempts and shifted ones included)
-    factorizations: int = 0
-    #: Krylov solves on a held factorisation and their iterations (``linear_solver="krylov"``)
-    krylov_solves: int = 0
-    krylov_iterations: int = 0
-
-    def summary(self) -> str:
-        t = ", ".join(f"{k} {v:.2f}s" for k, v in self.times.items())
-        st = "" if self.stable is None else (" stable" if self.stable else f" UNSTABLE ({self.n_negative} neg.)")
-        return (f"{'converged' if self.converged else 'NOT converged'} in {self.iterations} iterations, "
-                f"|r| = {self.residual:.3e} (scale {self.residual_scale:.3e}), energy {self.energy:.10g}{st}; {t}")
+__all__ = ["minimize", "follow_load", "secant_start", "check_unknowns", "NewtonError", "NewtonResult",
+           "LINEAR_SOLVERS", "lagged_quasi_newton", "line_search", "shift_to_positive", "escape_saddle",
+           "ESCAPE_AMPLITUDES"]
 
 
 def minimize(problem, u0, *, rtol=1e-9, atol=0.0, max_iter=60, stable=False, residual_scale=None,
@@ -272,11 +248,11 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
         """Step off the saddle at u along its most negative mode (at most 20 times per solve)."""
         nonlocal u, e, g, escapes, residual_scale
         if escapes >= 20:
-            raise NewtonError("could not leave the saddle after 20 escapes", _result(
+            raise NewtonError("could not leave the saddle after 20 escapes", newton_result(
                 u, False, it, e, res, residual_scale, n_neg, history, times))
         escapes += 1
         t = time.perf_counter()
-        u, e, g = _escape_saddle(problem, u, e, K, log)
+        u, e, g = escape_saddle(problem, u, e, K, log)
         times["line_search"] += time.perf_counter() - t
         if scale_from_start:    # a start at an exact equilibrium (a saddle) had an imbalance of round-off
             residual_scale = max(residual_scale, float(np.linalg.norm(g)))
@@ -303,7 +279,7 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
             if done:
                 if not stable or n_neg == 0:
                     break
-                if not _is_saddle(K, n_neg):       # the inertia unknown: the smallest eigenvalue is >= 0
+                if not is_saddle(K, n_neg):        # the inertia unknown: the smallest eigenvalue is >= 0
                     n_neg = 0
                     break
                 leave_saddle(it, res)
@@ -313,7 +289,7 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                 break
             if _stalled(history, stall):
                 raise NewtonError(f"Newton stalled at iteration {it}: |r| = {res:.3e} did not halve and the energy "
-                                  f"fell by less than 1e-7 of it over the last {stall} iterations", _result(
+                                  f"fell by less than 1e-7 of it over the last {stall} iterations", newton_result(
                                       u, False, it, e, res, residual_scale, n_neg, history, times), stalled=True)
             if d is not None:
                 un, en, gn, ok = _step(problem, u, e, g, d, max_step, times)
@@ -329,7 +305,7 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                 # no step lowers Π when the predicted decrease is below what float64 can resolve
                 # in Π: the residual has reached its round-off floor, which is as converged as it gets
                 if abs(g @ d) <= 1e-13 * max(abs(e), abs(e_start), 1e-300):
-                    if stable and _is_saddle(K, n_neg):
+                    if stable and is_saddle(K, n_neg):
                         # a saddle at the round-off floor (an equilibrium by symmetry, as a flat plate
                         # grown past buckling): leave it as a converged saddle is left
                         leave_saddle(it, res)
@@ -341,32 +317,24 @@ def _minimize(problem, u, e, g, times, residual_scale, rtol, atol, max_iter, sta
                     if log:
                         log(f"    newton: stopped at the round-off floor, |r| = {res:.3e}")
                     break
-                raise NewtonError(f"line search failed at iteration {it} (|r| = {res:.3e})", _result(
+                raise NewtonError(f"line search failed at iteration {it} (|r| = {res:.3e})", newton_result(
                     u, False, it, e, res, residual_scale, n_neg, history, times))
     except NewtonError as exc:
         if exc.result is None:         # the factorisation, the shift or the escape failed: still say where
-            exc.result = _result(u, False, it, e, float(np.linalg.norm(g)), residual_scale, n_neg, history, times)
+            exc.result = newton_result(u, False, it, e, float(np.linalg.norm(g)), residual_scale, n_neg, history, times)
         raise
     if escaped:
         # the last iteration stepped off a saddle: the new point is no equilibrium yet
         res = float(np.linalg.norm(g))
-        out = _result(u, False, it, e, res, residual_scale, None, history, times)
+        out = newton_result(u, False, it, e, res, residual_scale, None, history, times)
         raise NewtonError(f"Newton left a saddle on its last iteration (max_iter = {max_iter}): |r| = {res:.3e} "
                           "at the new point; allow more iterations", out)
     converged = roundoff_floor or res <= max(rtol * residual_scale + atol, floor)
-    out = _result(u, converged, it, e, res, residual_scale, n_neg, history, times)
+    out = newton_result(u, converged, it, e, res, residual_scale, n_neg, history, times)
     if not converged:
         raise NewtonError(f"Newton did not converge in {max_iter} iterations: |r| = {res:.3e} > "
                           f"{rtol * residual_scale + atol:.3e}", out)
     return out
-
-
-def _is_saddle(K, n_neg) -> bool:
-    """K has a negative eigenvalue (counted from the inertia, else from the smallest eigenvalue)."""
-    if n_neg is not None:
-        return n_neg > 0
-    lam, _ = smallest_eigenvalues(K, k=1)
-    return bool(lam[0] < 0)
 
 
 def _descend(problem, u, e, g, K, fac, n_neg, tau, shifted_factors, max_step, times, log):
@@ -383,69 +351,12 @@ def _descend(problem, u, e, g, K, fac, n_neg, tau, shifted_factors, max_step, ti
     if not n_neg or g @ d < -1e-8 * np.linalg.norm(g) * np.linalg.norm(d):
         u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
     if not ok and n_neg:
-        shifted, tau = _shift_to_positive(K, shifted_factors, times, max(1e-8, tau / 16) if tau else 1e-6)
+        shifted, tau = shift_to_positive(K, shifted_factors, times, max(1e-8, tau / 16) if tau else 1e-6)
         if log:
             log(f"    newton: Hessian has {n_neg} negative eigenvalues; shifted by {tau:.2e}")
         d = -shifted.solve(g)
         u, e, g, ok = _step(problem, u, e, g, d, max_step, times)
     return u, e, g, ok, d, tau
-
-
-def lagged_quasi_newton(problem, u, e, g, factorization, tol, max_iter, times, memory=8, stall=4, max_step=None):
-    r"""L-BFGS from an earlier Hessian's factorisation: minimise Π without assembling a Hessian.
-
-    The inverse-Hessian approximation starts from :math:`H_0 = K_0^{-1}`, the held
-    factorisation of a positive definite Hessian of a nearby problem (in a time or load
-    stepping: the previous step's converged state), and is corrected by the last ``memory``
-    pairs :math:`s_k = u_{k+1} - u_k`, :math:`y_k = \nabla\Pi_{k+1} - \nabla\Pi_k` (two-loop
-    recursion, Nocedal & Wright, Numerical Optimization, alg. 7.4); a pair with
-    :math:`s_k \cdot y_k \le 0` is skipped so that the approximation stays positive definite
-    and every direction is a descent one. Each iteration costs one back-substitution and an
-    energy/gradient line search instead of a Hessian assembly and a factorisation. With
-    :math:`K_0` close to the current Hessian the iteration contracts like Newton's after a
-    few steps (superlinearly).
-
-    Stops when :math:`|\nabla\Pi| \le` ``tol``, after ``max_iter`` iterations, when the
-    line search fails, or when ``stall`` iterations in a row did not halve the residual (a
-    Hessian that has moved too far: Newton is cheaper from there). Steps are capped to a
-    max-norm of ``max_step`` as Newton's are. Returns (u, Π, ∇Π, iterations); the state
-    returned has an energy no higher than the start (to the line search's round-off band).
-    """
-    t0 = time.perf_counter()
-    pairs = []
-    slow = 0
-    it = 0
-    res = np.linalg.norm(g)
-    while it < max_iter and res > tol:
-        q = g.copy()
-        alphas = []
-        for s, y, rho in reversed(pairs):
-            a = rho * (s @ q)
-            q -= a * y
-            alphas.append(a)
-        r = factorization.solve(q)
-        for (s, y, rho), a in zip(pairs, reversed(alphas)):
-            r += s * (a - rho * (y @ r))
-        un, en, gn, ok = _line_search(problem, u, e, g, -r, max_step=max_step)
-        if not ok:
-            break
-        it += 1
-        s, y = un - u, gn - g
-        sy = float(s @ y)
-        if sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
-            pairs = (pairs + [(s, y, 1.0 / sy)])[-memory:]
-        res_new = np.linalg.norm(gn)
-        slow = slow + 1 if res_new > 0.5 * res else 0
-        u, e, g, res = un, en, gn, res_new
-        if slow >= stall:
-            break
-    times["quasi_newton"] = times.get("quasi_newton", 0.0) + time.perf_counter() - t0
-    return u, e, g, it
-
-
-def _result(u, converged, it, e, res, scale, n_neg, history, times):
-    return NewtonResult(u, converged, it, e, res, scale, n_neg, None if n_neg is None else n_neg == 0,
-                        history, dict(times))
 
 
 def _roundoff_residual(K, u) -> float:
@@ -490,97 +401,9 @@ def _factorize(K, factorizer):
 
 def _step(problem, u, e, g, d, max_step, times):
     t = time.perf_counter()
-    out = _line_search(problem, u, e, g, d, max_step=max_step)
+    out = line_search(problem, u, e, g, d, max_step=max_step)
     times["line_search"] += time.perf_counter() - t
     return out
-
-
-def _shift_to_positive(K, factorizer, times, tau_start=1e-6):
-    """Factorise K + tau D with a tau (growing by 4 from ``tau_start``) that makes it positive definite.
-
-    Each trial is a Cholesky attempt only (:meth:`Refactorizer.positive_definite`): the
-    inertia of a failed trial is not needed, and a failing Cholesky costs about half an LDLᵀ.
-    """
-    d = K.diagonal()
-    D = np.abs(d)
-    D = np.where(D > 0, D, D.max() if D.max() > 0 else 1.0)
-    shifted = K.tocsr(copy=True)
-    tau = tau_start
-    for _ in range(60):
-        t = time.perf_counter()
-        # on K's own pattern (a sparse sum would drop its exact zeros: a new pattern to analyse)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", sp.SparseEfficiencyWarning)   # only if K lacks a diagonal entry
-            shifted.setdiag(d + tau * D)
-        fac = factorizer.positive_definite(shifted)
-        times["factorize"] += time.perf_counter() - t
-        if fac is not None:
-            return fac, tau
-        tau *= 4.0
-    raise NewtonError("could not shift the Hessian to positive definite")
-
-
-def _line_search(problem, u, e, g, d, c1=1e-4, max_halvings=30, max_step=None):
-    """Backtracking Armijo search on the energy; near convergence, on the residual norm.
-
-    The direction is scaled to a max-norm of ``max_step``. A step is taken when the energy
-    falls (Armijo), or, where energy differences are below round-off (1e-12 |Π|), when the
-    residual falls: so the energy may rise by that round-off band, no more.
-    """
-    slope = g @ d
-    if slope >= 0:  # not a descent direction (should not happen with a positive definite system)
-        d = -g
-    if max_step is not None:
-        big = np.abs(d).max()
-        if big > max_step:
-            d = d * (max_step / big)
-    slope = g @ d
-    r0 = np.linalg.norm(g)
-    alpha = 1.0
-    both = getattr(problem, "energy_and_gradient", None)
-    for _ in range(max_halvings):
-        un = u + alpha * d
-        gn = None
-        if both is not None and alpha == 1.0:
-            en, gn = both(un)
-        else:
-            en = problem.energy(un)
-        if np.isfinite(en):
-            # energy differences below round-off cannot rank steps: judge by the residual
-            roundoff = 1e-12 * max(abs(e), 1e-300)
-            if en <= e + c1 * alpha * slope or abs(en - e) <= roundoff:
-                if gn is None:
-                    gn = problem.gradient(un)
-                if np.all(np.isfinite(gn)) and (en < e - roundoff or np.linalg.norm(gn) < r0):
-                    return un, en, gn, True
-        alpha *= 0.5
-    return u, e, g, False
-
-
-#: amplitudes of the escape step, in units of max(|u|, 1): growing ones first; if none lowers the energy,
-#: smaller ones (along a direction of negative curvature a small enough step always does: Π(u + t v) ≈
-#: Π(u) + t ∇Π·v + ½ λ t² |v|² on both sides of a saddle, and positions in u make the first step ~1e-3 of
-#: the shell's size, past the quartic turn of a mildly negative mode on a large shell)
-ESCAPE_AMPLITUDES = (1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6)
-
-
-def _escape_saddle(problem, u, e, K, log):
-    """Move from a saddle along the most negative curvature direction, to lower energy."""
-    lam, vec = smallest_eigenvalues(K, k=1)
-    v = vec[:, 0]
-    scale = max(np.abs(u).max(), 1.0)
-    for amp in ESCAPE_AMPLITUDES:
-        best = None
-        for s in (1.0, -1.0):
-            un = u + s * amp * scale * v / np.abs(v).max()
-            en = problem.energy(un)
-            if np.isfinite(en) and en < e and (best is None or en < best[1]):
-                best = (un, en)
-        if best is not None:
-            if log:
-                log(f"    newton: left a saddle (eigenvalue {lam[0]:.3e}) along its mode, amplitude {amp:g}")
-            return best[0], best[1], problem.gradient(best[0])
-    raise NewtonError(f"at a saddle (eigenvalue {lam[0]:.3e}) but no step along its mode lowers the energy")
 
 
 def secant_start(problem, u, current, trial, previous):
@@ -659,7 +482,7 @@ class _LoadPath:
         if self.last is not None:
             return self.last
         g = problem.gradient(self.u)
-        return _result(self.u, False, 0, problem.energy(self.u), float(np.linalg.norm(g)), 1.0, None, [], {})
+        return newton_result(self.u, False, 0, problem.energy(self.u), float(np.linalg.norm(g)), 1.0, None, [], {})
 
 
 def _advance_load(problem, path, target, max_cuts, newton_options, log, on_solve):

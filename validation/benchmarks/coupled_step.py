@@ -101,10 +101,10 @@ def instrument(loop, timers):
     timers.wrap(loop.shell, "hessian", "hessian")
     timers.wrap(loop.chemistry, "step", "chemistry")
     timers.wrap(loop, "_predict", "predictor")
-    timers.wrap(newton_mod, "_escape_saddle", "escape", count="escapes")
+    timers.wrap(newton_mod, "escape_saddle", "escape", count="escapes")
     timers.wrap(newton_mod, "_factorize", "factorize", count="factorizations")
     # the shift search factorises K + tau D by Cholesky attempts of its own, not through _factorize
-    timers.wrap(newton_mod, "_shift_to_positive", "factorize", count="shift_searches")
+    timers.wrap(newton_mod, "shift_to_positive", "factorize", count="shift_searches")
 
     newton = loop._newton
 

@@ -83,7 +83,7 @@ def instrument(model, profile):
     """Wrap the model's and the solvers' entry points so that ``profile`` times them."""
     import femshell.solvers.krylov as krylov
     import femshell.solvers.linear as linear
-    import femshell.solvers.newton as newton
+    import femshell.solvers.negative_curvature as curvature
     import femshell.solvers.pardiso as pardiso
 
     model.hessian = profile.wrap("element Hessian", model.hessian)
@@ -93,7 +93,7 @@ def instrument(model, profile):
     linear.Factorization.refactor = profile.wrap("factorisation", linear.Factorization.refactor)
     linear.Factorization.solve = profile.wrap("back-substitution", linear.Factorization.solve)
     krylov.preconditioned_solve = profile.wrap("Krylov", krylov.preconditioned_solve, absorb=True)
-    newton.smallest_eigenvalues = profile.wrap("eigenvalues", newton.smallest_eigenvalues, absorb=True)
+    curvature.smallest_eigenvalues = profile.wrap("eigenvalues", curvature.smallest_eigenvalues, absorb=True)
     factor = pardiso._Pardiso.factor
 
     def counted(self, U, analyse):
