@@ -11,6 +11,12 @@ operators here work on the orthogonal complement of Z (docs/guide/continuation.m
 
 (s a scale of K's diagonal), whose inertia is that of K on the complement plus (r, r, 0) for the
 r border rows: so it also counts K's negative eigenvalues there (Sylvester's law).
+
+An eigen solver whose inner product is K's (ARPACK's regular-inverse and buckling modes) needs K
+positive definite, not only on the complement: the rigid parts of its vectors, unseen by a
+semidefinite norm, grow from round-off and spoil the Ritz values. The lifted matrix
+K + s Z Zᵀ is definite (K on the complement, s on Z), and its inverse is the deflated one plus
+Z Zᵀ / s (:func:`lifted`, :meth:`DeflatedInverse.lifted`).
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ import scipy.sparse as sp
 
 from ..solvers.linear import factorize
 
-__all__ = ["rigid_motions", "DeflatedInverse"]
+__all__ = ["rigid_motions", "DeflatedInverse", "lifted"]
 
 
 def rigid_motions(model, u, du=None):
@@ -69,27 +75,28 @@ def remove_rigid_part(x, Z):
     return x - Z @ (Z.T @ x) if Z.shape[1] else x
 
 
+def lifted(K, Z, scale):
+    """x ↦ (K + scale Z Zᵀ) x: K with its rigid null space Z (orthonormal) lifted to ``scale``."""
+    return lambda x: K @ x + scale * (Z @ (Z.T @ x)) if Z.shape[1] else K @ x
+
+
 class DeflatedInverse:
     """``(K on the complement of Z)⁻¹``: ``inv(b)`` solves K x = P b with Zᵀ x = 0 (P the orthogonal
     projector off Z, Z orthonormal), by one factorisation of the bordered matrix (module docstring).
 
     ``inertia``: (positive, negative, zero) eigenvalues of K on the complement, or None when the
-    back-end cannot count them. ``free()`` releases the factorisation.
+    back-end cannot count them. ``scale``: the border's scale s, mean |diag K|. ``lifted(b, scale)``
+    solves (K + scale Z Zᵀ) x = b. ``free()`` releases the factorisation.
     """
-
-    #: iterative refinement steps of every solve (a stiff shell's K has a condition number of 1e8 and more;
-    #: the eigen solver needs its inverse to more digits than one pivoted solve gives)
-    REFINEMENT_STEPS = 2
 
     def __init__(self, K, Z, backend="auto"):
         K = sp.csr_matrix(K)
         self.n, self.r = K.shape[0], Z.shape[1]
         self.Z = Z
+        self.scale = float(np.abs(K.diagonal()).mean()) or 1.0
         if self.r:
-            s = float(np.abs(K.diagonal()).mean()) or 1.0
-            border = sp.csr_matrix(s * Z)
+            border = sp.csr_matrix(self.scale * Z)
             K = sp.bmat([[K, border], [border.T, None]], format="csr")
-        self._K = K
         self._fac = factorize(K, kind="symmetric_indefinite", backend=backend)
         inertia = self._fac.inertia
         self.inertia = None if inertia is None else (inertia[0] - self.r, inertia[1] - self.r, inertia[2])
@@ -97,10 +104,12 @@ class DeflatedInverse:
     def __call__(self, b):
         b = remove_rigid_part(np.asarray(b, dtype=float), self.Z)
         rhs = np.concatenate([b, np.zeros((self.r,) + b.shape[1:])]) if self.r else b
-        x = self._fac.solve(rhs)
-        for _ in range(self.REFINEMENT_STEPS):
-            x = x + self._fac.solve(rhs - self._K @ x)
-        return remove_rigid_part(x[: self.n], self.Z)
+        return remove_rigid_part(self._fac.solve(rhs)[: self.n], self.Z)
+
+    def lifted(self, b, scale):
+        """(K + scale Z Zᵀ)⁻¹ b = (this inverse) b + Z Zᵀ b / scale (module docstring)."""
+        b = np.asarray(b, dtype=float)
+        return self(b) + self.Z @ (self.Z.T @ b) / scale
 
     def free(self):
         self._fac.free()

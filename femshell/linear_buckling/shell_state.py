@@ -57,7 +57,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from .._checks import integer
-from .deflation import DeflatedInverse, remove_rigid_part, rigid_motions
+from .deflation import DeflatedInverse, lifted, remove_rigid_part, rigid_motions
 
 #: eigenpairs with a larger relative residual ‖φ + μ K₀⁻¹K₁φ‖_K₀ / ‖φ‖_K₀ are dropped: ARPACK's Ritz pairs
 #: when no positive eigenvalue exists have residuals of order 1; a converged pair's eigenvalue is
@@ -324,13 +324,20 @@ def _start(n, Z):
     return remove_rigid_part(np.random.default_rng(12345).standard_normal(n), Z)
 
 
+def _geometric(K1, Z):
+    """x ↦ −P K₁ P x (P the projector off Z): symmetric, and zero on the rigid motions."""
+    return lambda x: remove_rigid_part(-(K1 @ remove_rigid_part(x, Z)), Z)
+
+
 def _smallest_positive(K0, K1, inv0, Z, k, extra, tol):
-    """The smallest positive μ: the largest λ = 1/μ of −K₁ φ = λ K₀ φ (K₀⁻¹ on the complement of Z)."""
-    n = K0.shape[0]
+    """The smallest positive μ: the largest λ = 1/μ of −P K₁ P φ = λ (K₀ + s Z Zᵀ) φ (the rigid motions
+    lifted to λ = 0; module docstring of :mod:`.deflation`)."""
+    n, s = K0.shape[0], inv0.scale
     nev = min(k + extra, n - Z.shape[1] - 2)
-    B = spla.LinearOperator((n, n), matvec=lambda x: remove_rigid_part(-(K1 @ x), Z), dtype=float)
-    M = spla.LinearOperator((n, n), matvec=lambda x: K0 @ x, dtype=float)
-    lam, X = spla.eigsh(B, k=nev, M=M, Minv=spla.LinearOperator((n, n), matvec=inv0, dtype=float),
+    B = spla.LinearOperator((n, n), matvec=_geometric(K1, Z), dtype=float)
+    M = spla.LinearOperator((n, n), matvec=lifted(K0, Z, s), dtype=float)
+    lam, X = spla.eigsh(B, k=nev, M=M, Minv=spla.LinearOperator((n, n), matvec=lambda b: inv0.lifted(b, s),
+                                                                 dtype=float),
                         which="LA", tol=tol, v0=_start(n, Z), ncv=min(n - Z.shape[1] - 1, max(2 * nev + 1, 20)))
     positive = lam > 1e-12 * max(np.abs(lam).max(), 1e-300)
     lam, X = lam[positive], X[:, positive]
@@ -339,15 +346,17 @@ def _smallest_positive(K0, K1, inv0, Z, k, extra, tol):
 
 
 def _nearest(K0, K1, Z, shift, k, extra, tol, backend):
-    """The μ nearest ``shift``: ARPACK buckling mode, OPinv = (K₀ + shift K₁)⁻¹ on the complement of Z."""
+    """The μ nearest ``shift``: ARPACK buckling mode for (K₀ + s Z Zᵀ) φ = μ (−P K₁ P) φ, OPinv =
+    (K₀ + s Z Zᵀ + shift P K₁ P)⁻¹ (the rigid motions lifted to μ = ∞)."""
     n = K0.shape[0]
     inv = DeflatedInverse(K0 + shift * K1, Z, backend)
+    s = float(np.abs(K0.diagonal()).mean()) or 1.0
     try:
         nev = min(k + extra, n - Z.shape[1] - 2)
-        B = spla.LinearOperator((n, n), matvec=lambda x: remove_rigid_part(-(K1 @ x), Z), dtype=float)
-        A = spla.LinearOperator((n, n), matvec=lambda x: K0 @ x, dtype=float)
+        B = spla.LinearOperator((n, n), matvec=_geometric(K1, Z), dtype=float)
+        A = spla.LinearOperator((n, n), matvec=lifted(K0, Z, s), dtype=float)
         mu, X = spla.eigsh(A, k=nev, M=B, sigma=shift, mode="buckling", tol=tol, v0=_start(n, Z),
-                           OPinv=spla.LinearOperator((n, n), matvec=inv, dtype=float),
+                           OPinv=spla.LinearOperator((n, n), matvec=lambda b: inv.lifted(b, s), dtype=float),
                            ncv=min(n - Z.shape[1] - 1, max(2 * nev + 1, 20)))
         n_between = None if inv.inertia is None else int(inv.inertia[1])
     finally:
