@@ -8,8 +8,9 @@ hoop curvature and the straight generators as they are). Both ends are symmetry 
 z = L (axial displacement and the edge's rotation held, radial motion free), so the cylinder is the
 period cell of an infinite one: its prebuckling state is exactly a uniform axial compression
 N = E t g (to first order in g; the hoop stress is zero, the radius grows by ν g R), without the
-edge bending of real supports. Three pins remove the remaining rigid motions (translations in x, y,
-rotation about z), which are null vectors of the Hessian at every g.
+edge bending of real supports. The remaining rigid motions (translations in x, y, rotation about z)
+are null vectors of the Hessian at every g: linear buckling deflates them
+(:func:`~femshell.linear_buckling.shell_buckling_loads`), the continuation holds them by three pins.
 
 Classical result (Lorenz 1908, Timoshenko 1910, Southwell 1914): the critical axial stress of a
 long cylinder, σ_cr = E t / (R √(3 (1 − ν²))), i.e. g_cl = t / (R √(3 (1 − ν²))), reached by the
@@ -17,9 +18,8 @@ axisymmetric mode of half-wavelength l_cr = π √(R t) / (12 (1 − ν²))^(1/4
 (m, n) mode on Koiter's circle; with symmetry planes L apart the axisymmetric mode cos(2π z/L) has
 exactly that half-wavelength. Thin-shell corrections are O(t/R).
 
-Rows per mesh: linear-buckling g_c / g_cl (:func:`femshell.validation.shell_buckling.linear_buckling`) and the
-continuation's first instability (growth parameter); the observed order and Richardson estimate
-of the linear ladder. As for the sphere, the faceted cylinder is an imperfect cylinder and the
+Rows per mesh: linear-buckling g_c / g_cl and the continuation's first instability (growth
+parameter); the observed order and Richardson estimate of the linear ladder. As for the sphere, the faceted cylinder is an imperfect cylinder and the
 nonlinear continuation feels it; its rows are reported.
 """
 
@@ -29,11 +29,12 @@ import math
 
 import numpy as np
 
+from ..linear_buckling import shell_buckling_loads
 from ..mesh.generators import cylinder
 from ..shell import Material, Prescribed, RestState, ShellModel, Symmetry
 from ..solvers.continuation import GrowthParameter
 from .framework import Row, timed
-from .shell_buckling import convergence_rows, first_instability, instability_kind, linear_buckling
+from .shell_buckling import convergence_rows, first_instability, instability_kind
 
 NAME = "cylinder-axial-buckling"
 DESCRIPTION = ("cylinder R/t = 100 compressed axially by growth between symmetry planes: critical strain vs "
@@ -61,14 +62,16 @@ def axial_growth(points, triangles, curvature, g):
     return RestState(abar, curvature, THICKNESS)
 
 
-def cylinder_problem(n_vertices, seed=0):
-    """(model, GrowthParameter in g) of the cylinder of about ``n_vertices`` vertices, stress free at g = 0."""
+def cylinder_problem(n_vertices, seed=0, pinned=True):
+    """(model, GrowthParameter in g) of the cylinder of about ``n_vertices`` vertices, stress free at g = 0;
+    ``pinned``: three pins hold its rigid motions (two vertices on the bottom edge at x = ±R)."""
     mesh = cylinder(RADIUS, LENGTH, n_vertices=n_vertices, seed=seed)
-    bottom = np.flatnonzero(np.abs(mesh.points[:, 2]) < 1e-9 * LENGTH)
-    a = bottom[np.argmin(np.linalg.norm(mesh.points[bottom] - [RADIUS, 0, 0], axis=1))]
-    b = bottom[np.argmin(np.linalg.norm(mesh.points[bottom] - [-RADIUS, 0, 0], axis=1))]
-    bcs = [Symmetry("z", 0.0), Symmetry("z", LENGTH), Prescribed(vertices=(int(a),), components=(0, 1)),
-           Prescribed(vertices=(int(b),), components=(1,))]
+    bcs = [Symmetry("z", 0.0), Symmetry("z", LENGTH)]
+    if pinned:
+        bottom = np.flatnonzero(np.abs(mesh.points[:, 2]) < 1e-9 * LENGTH)
+        a = bottom[np.argmin(np.linalg.norm(mesh.points[bottom] - [RADIUS, 0, 0], axis=1))]
+        b = bottom[np.argmin(np.linalg.norm(mesh.points[bottom] - [-RADIUS, 0, 0], axis=1))]
+        bcs += [Prescribed(vertices=(int(a),), components=(0, 1)), Prescribed(vertices=(int(b),), components=(1,))]
     model = ShellModel(mesh, Material(E, NU), THICKNESS, bcs,
                        remove_rigid_modes=False)
     curvature = model.stress_free_rest_state().curvature        # the drawn cylinder is stress free
@@ -84,8 +87,8 @@ def run(level):
     rows, ladder = [], []
     for i, nv in enumerate(plan["linear"]):
         with timed() as t:
-            model, problem = cylinder_problem(nv)
-            g, _ = linear_buckling(model, problem.set_parameter, problem.parameter_derivative, step=1e-3 * G_CL)
+            model, problem = cylinder_problem(nv, pinned=False)
+            g = shell_buckling_loads(problem, model.initial_unknowns(), k=4).parameters
         n = model.mesh.n_vertices
         ladder.append((n, g[0] / G_CL))
         rows.append(Row(f"linear buckling g_c / g_cl @ n={n}", g[0] / G_CL, 1.0,

@@ -1,55 +1,17 @@
-r"""Helpers of the curved-shell buckling cases: linear buckling of a model along a parameter, the first
-instability by continuation, Richardson extrapolation with an observed order.
-
-Linear buckling (theory §2.6): the linear prebuckling state u₁ = −K₀⁻¹ ∂r/∂λ at the unloaded
-reference, the derivative K₁ = dK/dλ of the Hessian along (λ u₁, λ) (central difference), and the
-smallest λ > 0 with (K₀ + λ K₁) φ = 0, from the generalised eigenproblem −K₁ φ = (1/λ) K₀ φ
-(Lanczos with K₀'s Cholesky factorisation). A support that only removes the rigid motions
-(statically determinate pins) leaves the critical loads of the free shell when the rigid motions
-are null vectors of K(λ) for every λ (self-equilibrated, rotation-invariant loading: growth, a
-follower pressure on a closed surface): the pinned Hessian has the nonzero inertia of the free one.
+r"""Helpers of the curved-shell buckling cases: the first instability by continuation, Richardson extrapolation
+with an observed order, the rows of a refinement ladder. Their linear buckling is the library's
+(:func:`femshell.linear_buckling.shell_buckling_loads`: rigid motions deflated, no pins).
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
-import scipy.sparse.linalg as spla
 from scipy.optimize import brentq
 
 from ..solvers.continuation import continuation
-from ..solvers.linear import factorize
 from .common import finest_order
 from .framework import Row
-
-
-def linear_buckling(model, set_parameter, parameter_derivative, *, step, k=4):
-    """(critical parameters ascending, modes (n_free, ≤ k)) of ``model`` at its reference state.
-
-    ``set_parameter(lam)`` makes λ current (0: unloaded); ``parameter_derivative(u)`` is ∂r/∂λ at
-    the current λ; ``step`` the central-difference step of K₁ in λ (small against the critical λ).
-    """
-    u0 = model.initial_unknowns()
-    set_parameter(0.0)
-    K0 = model.hessian(u0)
-    fac = factorize(K0, kind="spd")
-    try:
-        u1 = -fac.solve(parameter_derivative(u0))
-
-        def hessian_at(lam):
-            set_parameter(lam)
-            return model.hessian(u0 + lam * u1)
-
-        K1 = (hessian_at(step) - hessian_at(-step)) / (2 * step)
-        k0_inverse = spla.LinearOperator(K0.shape, matvec=fac.solve, dtype=float)
-        inv_lam, V = spla.eigsh(-K1, k=k, M=K0, Minv=k0_inverse, which="LA", tol=1e-10)
-    finally:
-        fac.free()
-        set_parameter(0.0)
-    keep = inv_lam > 0
-    order = np.argsort(-inv_lam[keep])
-    return 1.0 / inv_lam[keep][order], V[:, keep][:, order]
 
 
 def first_instability(problem, u0, lam_stop, *, ds=0.1, ds_max=0.2):

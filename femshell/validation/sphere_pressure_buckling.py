@@ -3,11 +3,12 @@ result, by linear buckling and by continuation.
 
 A complete sphere of radius R = 100 t (t = 1, E = 1, ν = 0.3), stress free as drawn
 (:meth:`~femshell.shell.ShellModel.stress_free_rest_state`), under a follower pressure p pushing
-inwards (:class:`~femshell.shell.FollowerPressure` with p < 0), held only against rigid motions
-(:func:`~femshell.shell.rigid_body_pins`: a statically determinate support; the pressure on a
-closed surface is self-equilibrated and rotation invariant, so the pinned Hessian has exactly the
-nonzero inertia of the free one and the critical loads are those of the free sphere). The
-membrane prestress is uniform, N = −pR/2, and the sphere buckles in a spherical harmonic of degree
+inwards (:class:`~femshell.shell.FollowerPressure` with p < 0), held by nothing: the pressure on a
+closed surface is self-equilibrated and rotation invariant, and linear buckling deflates the six rigid
+motions (:func:`~femshell.linear_buckling.shell_buckling_loads`); the continuation holds them by the
+statically determinate :func:`~femshell.shell.rigid_body_pins`, which leave the nonzero
+inertia of the free sphere. The membrane prestress is uniform, N = −pR/2, and the sphere buckles in a
+spherical harmonic of degree
 
     n(n + 1) ≈ √(12 (1 − ν²)) R/t  (n ≈ 17.7 at R/t = 100; all 2n + 1 orders, and neighbouring n, are
     critical within a fraction of a per cent: a cluster of dozens of modes)
@@ -21,9 +22,9 @@ thin-shell corrections are O(t/R); the reference is p_cl.
 
 Procedure per mesh (a refinement ladder of gmsh spheres):
 
-* linear buckling: the linear prebuckling state u₁ (K₀ u₁ = −r at load factor 1), the
-  derivative K₁ = dK/dλ along λ u₁ (central difference, including the follower-load
-  stiffness), and the smallest λ with (K₀ + λ K₁) φ = 0 (shift-invert Lanczos with K₀);
+* linear buckling (:func:`~femshell.linear_buckling.shell_buckling_loads` in the load factor, from the
+  unloaded sphere): the smallest λ with (K₀ + λ K₁) φ = 0, K₁ the derivative of the Hessian along
+  the linear prebuckling path (including the follower-load stiffness), rigid motions deflated;
   the mode degree from the normal component w of the critical mode, rigid and degree-0/1 parts
   removed, as n(n + 1) = R² ⟨w, K w⟩ / ⟨w, M w⟩ with the P1 Laplace–Beltrami stiffness K and
   lumped mass M;
@@ -47,10 +48,11 @@ import numpy as np
 
 from ..chemistry import surface_mass_lumped, surface_stiffness
 from ..mesh.generators import sphere
+from ..linear_buckling import shell_buckling_loads
 from ..shell import FollowerPressure, Material, ShellModel
 from ..solvers.continuation import LoadParameter
 from .framework import Row, timed
-from .shell_buckling import convergence_rows, first_instability, instability_kind, linear_buckling
+from .shell_buckling import convergence_rows, first_instability, instability_kind
 
 NAME = "sphere-pressure-buckling"
 DESCRIPTION = ("complete sphere R/t = 100 under external follower pressure: critical pressure vs "
@@ -80,22 +82,21 @@ def sphere_model(n_vertices, seed=0):
     return model
 
 
-def critical_loads(model):
-    """(load factors ascending, modes): linear buckling in the load factor
-    (:func:`femshell.validation.shell_buckling.linear_buckling`)."""
-    def set_load(lam):
-        model.load_factor = lam
-
-    lam, modes = linear_buckling(model, set_load, lambda u: -model.load_gradient(u), step=1e-3)
+def critical_loads(model, k=4):
+    """(load factors ascending, vertex displacements (n, 3) of the lowest mode): linear buckling of the
+    unloaded sphere in the load factor (:func:`femshell.linear_buckling.shell_buckling_loads`)."""
+    model.load_factor = 0.0
+    res = shell_buckling_loads(model, model.initial_unknowns(), k=k)
     model.load_factor = 1.0
-    return lam, modes
+    return res.parameters, res.displacements(0)
 
 
-def mode_degree(model, mode):
-    """The spherical-harmonic degree n of a mode's normal displacement: n(n + 1) = R² ⟨w, Kw⟩ / ⟨w, Mw⟩ after
-    removing its degree-0 and degree-1 parts (a rigid translation is degree 1)."""
+def mode_degree(model, displacement):
+    """The spherical-harmonic degree n of a mode's normal displacement (vertex displacements (n, 3)):
+    n(n + 1) = R² ⟨w, Kw⟩ / ⟨w, Mw⟩ after removing its degree-0 and degree-1 parts (a rigid translation
+    is degree 1)."""
     x = model.mesh.points
-    w = np.einsum("ij,ij->i", model.mode_displacements(mode), x / np.linalg.norm(x, axis=1)[:, None])
+    w = np.einsum("ij,ij->i", displacement, x / np.linalg.norm(x, axis=1)[:, None])
     m = surface_mass_lumped(x, model.mesh.triangles)
     low = np.column_stack([np.ones(len(x)), x])
     coef = np.linalg.solve(low.T @ (m[:, None] * low), low.T @ (m * w))
@@ -111,14 +112,14 @@ def run(level):
     for i, nv in enumerate(plan["linear"]):
         with timed() as t:
             model = sphere_model(nv)
-            lam, modes = critical_loads(model)
+            lam, mode = critical_loads(model)
         n = model.mesh.n_vertices
         finest = i == len(plan["linear"]) - 1
         ladder.append((n, lam[0]))
         rows.append(Row(f"linear buckling p_cr / p_cl @ n={n}", lam[0], 1.0, tol_fine if finest else None, n, t()))
         if finest:
             rows.append(Row(f"mode degree of the critical mode (classical {N_CL:.2f}) @ n={n}",
-                            mode_degree(model, modes[:, 0]), N_CL, tol_degree / N_CL, n, 0.0))
+                            mode_degree(model, mode), N_CL, tol_degree / N_CL, n, 0.0))
     ns, values = zip(*ladder)
     rows += convergence_rows("linear p_cr / p_cl", ns, values, tol_rich)
     for nv in plan["continuation"]:
