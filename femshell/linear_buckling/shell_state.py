@@ -31,7 +31,9 @@ Eigen solver: ARPACK (``scipy.sparse.linalg.eigsh``) with every inverse a factor
 (shift-invert about μ = 0), i.e. the smallest positive μ; with a target p_t: buckling mode
 shift-invert about μ_t = p_t − p₀, the k values of μ nearest it, and the inertia of
 :math:`K_0 + \mu_t K_1` counts the eigenvalues between 0 and μ_t. K₀ must be positive definite on the
-complement (a stable state): the eigenproblem then is a symmetric-definite one.
+complement (a stable state): the eigenproblem then is a symmetric-definite one. Its inner product is
+K₀ + s Z Zᵀ, definite on the whole space, and its K₁ is P K₁ P (P the projector off Z): the rigid
+motions sit at 1/μ = 0 instead of in a null space that the solver's norm cannot see (:mod:`.deflation`).
 
 Example
 -------
