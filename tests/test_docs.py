@@ -83,3 +83,17 @@ def test_accuracy_page_takes_results_given_relative_to_the_repository(tmp_path, 
     assert page._rel("validation/results/scordelis-lo.json") == "validation/results/scordelis-lo.json"
     assert page._rel(str(ROOT / "validation" / "results" / "x.json")) == "validation/results/x.json"
     assert page._rel(str(tmp_path / "x.json")) == str(tmp_path / "x.json")
+
+
+def test_validation_report_is_the_generated_one():
+    """docs/validation-report.md is `docs/build.py --update-report`'s output from validation/results: a section
+    written by hand would be dropped by the next update (and a case without a full-level JSON has none)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("docs_build", DOCS / "build.py")
+    build = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build)
+    report = build.validation_report()
+    assert (DOCS / "validation-report.md").read_text(encoding="utf-8") == report
+    for f in (ROOT / "validation" / "results").glob("*.json"):
+        assert f"\n## {f.stem}: " in report, f.name

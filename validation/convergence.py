@@ -90,9 +90,10 @@ def mesh_series(doc):
         name, where = q.split(" @ ", 1)
         if where.startswith("dt="):          # time-step series are not mesh series
             continue
-        # only a mesh spec alone: "h=2 R2=3" or "h=2 eps=0.5 ..." is a sweep of the shell's thickness
-        # and other parameters, whose rows (a stability count, the paper's value) are no mesh series
-        m = re.fullmatch(r"(h|h_min)=([0-9.eE+-]+)|(?:level|mesh) \d+", where)
+        # only a mesh spec alone ("h=0.1", "level 2", "mesh 3", or a vertex count "n=4017"): "h=2 R2=3" or
+        # "h=2 eps=0.5 ..." is a sweep of the shell's thickness and other parameters, whose rows (a
+        # stability count, the paper's value) are no mesh series
+        m = re.fullmatch(r"(h|h_min)=([0-9.eE+-]+)|(?:level|mesh) \d+|n=\d+", where)
         if m is None:
             continue
         size = float(m.group(2)) if m.group(2) else None
@@ -247,6 +248,7 @@ def _rec_cell(rec, f):
 
 
 def case_section(case, doc, series, fits, image_rel):
+    limits = series_limits(doc, series)
     lines = [f"### {case}", "", f"{doc.get('description', '')}  ", f"Reference: {doc.get('source', '')}", "",
              f"![{case}]({image_rel})", "",
              "| series | meshes | finest: vertices, error | order p (h^p) | time ~ n^r | 1 %: vertices, h, time | "
@@ -261,15 +263,59 @@ def case_section(case, doc, series, fits, image_rel):
             cells += [f"{f['p']:.2f} (not converging on these meshes)", _g(f.get("r"), ".2f"), "", ""]
         else:
             cells += [f"{f['p']:.2f}" + ("" if f["monotone"] else " (non-monotone)"), _g(f.get("r"), ".2f")]
-            for tgt in TARGETS:
-                rec = recommend(pts, f, tgt)
-                if rec is None:
-                    cells.append("")
-                    continue
-                cells.append(_rec_cell(rec, f))
+            cells += _target_cells(pts, f, limits.get(name))
         lines.append("| " + " | ".join(cells) + " |")
     lines.append("")
-    return lines
+    return lines + extrapolation_lines(doc)
+
+
+def series_limits(doc, names):
+    """{series name: relative distance of its Richardson estimate from the reference}, from the case's rows
+    ``NAME, Richardson ...`` (no mesh) with a reference; a row's NAME belongs to the series in ``names`` whose
+    name holds NAME's words in order ("linear g_c / g_cl" to "linear buckling g_c / g_cl"). Signed, as
+    (estimate − reference) / |reference|."""
+    def holds(name, words):
+        it = iter(name.split())
+        return all(w in it for w in words)
+
+    out = {}
+    for r in doc["rows"]:
+        q = r["quantity"]
+        if " @ " not in q and ", Richardson" in q and r.get("reference") not in (None, 0) and r.get("value") is not None:
+            words = q.split(", Richardson", 1)[0].split()
+            for name in names:
+                if holds(name, words):
+                    out[name] = (r["value"] - r["reference"]) / abs(r["reference"])
+    return out
+
+
+def _target_cells(pts, f, limit):
+    """The 1 % and 0.1 % cells of a series whose Richardson estimate is ``limit`` (signed, relative) from the
+    reference. A target is out of any mesh's reach when the estimate is farther from the reference than the
+    target by more than the estimate's own step from the finest mesh: the series converges elsewhere (e.g. to a
+    model that differs from the reference formula by O(t/R))."""
+    cells = []
+    step = abs(limit - pts[-1][4]) if limit is not None and pts[-1][4] is not None else math.inf
+    for tgt in TARGETS:
+        if limit is not None and abs(limit) - step > tgt:
+            cells.append(f"not reached: converges {abs(limit):.2g} from the reference (Richardson)")
+            continue
+        rec = recommend(pts, f, tgt)
+        cells.append("" if rec is None else _rec_cell(rec, f))
+    return cells
+
+
+def extrapolation_lines(doc):
+    """The case's own rows on a whole series (no `` @ `` mesh): an order observed from the values alone and a
+    Richardson estimate, which say where a series converges when that is not its reference."""
+    rows = [r for r in doc["rows"] if " @ " not in r["quantity"] and re.search("Richardson|order .* from ", r["quantity"])
+            and r.get("value") is not None]
+    if not rows:
+        return []
+    return ["The case's rows on the whole series:", ""] + [
+        f"- {r['quantity']}: {r['value']:.4g}" + ("" if r.get("tolerance") is None else
+                                                 f" (tolerance {r['tolerance']:.2g}: {'yes' if r['passed'] else 'NO'})")
+        for r in rows] + [""]
 
 
 def rows_table(doc, select=lambda r: True):
@@ -310,8 +356,9 @@ def conditioning_table(doc):
     return lines + [""]
 
 
-def recommendation_table(summary, stalled, checked):
-    """The summary table: per case the checked series that needs the finest mesh for 1 % and 0.1 %."""
+def recommendation_table(summary, stalled, checked, limits):
+    """The summary table: per case the checked series that needs the finest mesh for 1 % and 0.1 %
+    (``limits``: per case :func:`series_limits`)."""
     head = ["## Recommendation: mesh and cost for 1 % and 0.1 % error", "",
             "Per case, of the series the case checks against a tolerance (all series if none has one), the",
             "one that needs the finest mesh: the other checked quantities are then at least as accurate.",
@@ -336,13 +383,7 @@ def recommendation_table(summary, stalled, checked):
                 and need(pts, f)[0] > by_case[case][0][0]:
             slower.setdefault(case, []).append(f"{name} (p = {f['p']:.2f})")
     for case, (_, name, pts, f) in sorted(by_case.items()):
-        cells = [case, name, f"{f['p']:.2f}"]
-        for tgt in TARGETS:
-            rec = recommend(pts, f, tgt)
-            if rec is None:
-                cells.append("")
-            else:
-                cells.append(_rec_cell(rec, f))
+        cells = [case, name, f"{f['p']:.2f}"] + _target_cells(pts, f, limits.get(case, {}).get(name))
         notes = []
         if stalled.get(case):
             notes.append(f"not converging on these meshes: {'; '.join(stalled[case])}")
@@ -408,7 +449,7 @@ def generated_markdown(results, images: Path, doc_path: Path):
             elif f and f.get("no_convergence"):
                 stalled.setdefault(case, []).append(name)
     # one-line summary per case: the series that needs the most vertices for 1 %
-    head = recommendation_table(summary, stalled, checked)
+    head = recommendation_table(summary, stalled, checked, {c: series_limits(d, mesh_series(d)) for c, d in results.items()})
     at = lines.index("## Convergence of every validation case with a reference")
     lines = lines[:at] + head + [""] + lines[at:]
 
