@@ -163,3 +163,50 @@ def test_the_uniform_sphere_reduction_in_its_limits():
     c = usp.uniform_concentration(7.0, usp.model(7.0))
     H = 1 / usp.sphere_radius(float(flat.stretch(c)), flat)
     assert c == pytest.approx(7.0 * H / (1 + H / flat.Hs), rel=1e-12)
+
+
+# ----------------------------------------------------------------------------- the scene kind
+
+def _guide_scene():
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "continuation.md").read_text()
+    (block,) = [b for b in re.findall(r"^```toml\n(.*?)^```", text, flags=re.S | re.M)
+                if 'kind = "pattern-continuation"' in b]
+    return block
+
+
+def test_pattern_continuation_scene_of_the_guide_runs(tmp_path, capsys):
+    from femshell.cli import main
+
+    scene = tmp_path / "spot.toml"
+    scene.write_text(_guide_scene())
+    out = tmp_path / "run"
+    assert main(["run", str(scene), "--out", str(out), "-q"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    pc = summary["final"]["pattern_continuation"]
+    assert summary["status"] == "done" and pc["status"] == "fold" and pc["parameter"] == "w"
+    (lp,) = pc["special_points"]
+    assert lp["kind"] == "fold" and 15.0 < lp["parameter"] < 17.0
+    rows = json.loads((out / "pattern" / "w-branch.json").read_text())["rows"]
+    assert rows[0]["parameter"] == 15.0 and rows[0]["stable"] and rows[0]["n_spots"] == 1
+    for name in ("w-branch.csv", "w-special-points.json", "w-special-00-fold.vtu", "w-special-00-fold-mode.png",
+                 "w-diagram-max_c.png", "w-diagram-spot_radius.png", "w-diagram-patterned_area.png"):
+        assert (out / "pattern" / name).is_file(), name
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(tmp_path / "dry"), "--dry-run"]) == 0
+    assert "followed in w to 17" in capsys.readouterr().out
+
+
+def test_pattern_continuation_scene_keys_are_checked(tmp_path):
+    from femshell.scene import SceneError, load_scene
+
+    good = _guide_scene()
+    for bad, said in ((good.replace('parameter = "w"', 'parameter = "Hs"'), "parameter"),
+                      (good.replace("continuation_steps = 20", "continuation_steps = 0"), "continuation_steps"),
+                      (good.replace('[solver]\n', '[solver]\nswitch_branch = true\n'), "switch_branch")):
+        path = tmp_path / "bad.toml"
+        path.write_text(bad)
+        with pytest.raises(SceneError, match=said):
+            load_scene(str(path))

@@ -29,7 +29,7 @@ from ..analysis import count_spots, find_spots, same_pattern
 from ..growth import GrowthRestState
 from ..mesh import check_mesh, generators
 from ..mesh.io import read_mesh
-from .config import NEWTON_KEYS
+from .config import NEWTON_KEYS, TIME_KINDS, TimeSolver
 from .schema import Scene, SceneError, validate
 from .text import apply_overrides, parse_scene, tomllib
 
@@ -339,7 +339,7 @@ def coupled_parameters(scene: Scene):
     except ValueError as exc:
         raise SceneError(f"{scene.label}: [growth]/[chemistry]: {exc}") from None
     # every time-loop control of the scene is a TimeStepping field of the same name; the Newton ones only if given
-    kw = {f.name: getattr(so, f.name) for f in fields(so) if f.name not in ("kind", *NEWTON_KEYS)}
+    kw = {f.name: getattr(so, f.name) for f in fields(TimeSolver) if f.name not in ("kind", *NEWTON_KEYS)}
     if so.newton_rtol is not None:
         kw["newton_rtol"] = so.newton_rtol
     if so.newton_max_iter is not None:
@@ -531,8 +531,14 @@ def plan(scene: Scene, mesh=None) -> tuple[list, dict]:
              "continuation": False, "loads": bool(scene.loads), "n_vertices": mesh.n_vertices,
              "n_triangles": mesh.n_triangles, "unknowns": unk["free"], "solver": kind}
     so = scene.solver
-    if kind == "time":
+    if kind in TIME_KINDS:
         _time_plan(scene, lines, flags, operators)
+        if kind == "pattern-continuation":
+            flags["continuation"] = True
+            operators.append("LU of the coupled Jacobian (stationary Newton, bordered solves, det J's sign)")
+            lines.append(f"  then       the stationary pattern (Newton on (u, c)) followed in {so.parameter}"
+                         + (f" to {so.stop:g}" if so.stop is not None else "") + f", at most {so.continuation_steps} "
+                         f"points, ds={so.continuation_ds:g}; {so.n_modes} leading eigenvalues per point")
     elif kind == "static":
         lines.append(f"  solver     static: {so.steps} increments of the load factor / growth from 0 to 1, "
                      f"Newton to {'stable ' if so.stable else ''}equilibria (up to {so.max_cuts} cuts)")

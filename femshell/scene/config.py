@@ -16,7 +16,7 @@ import copy
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 
-__all__ = ["Spec", "key", "specs", "Scene", "SceneConfig", "MESH_CONFIGS", "SOLVER_CONFIGS", "BOUNDARY_TYPES",
+__all__ = ["Spec", "key", "specs", "Scene", "SceneConfig", "MESH_CONFIGS", "SOLVER_CONFIGS", "TIME_KINDS", "BOUNDARY_TYPES",
            "LOAD_TYPES", "GROWTH_LAWS", "MaterialConfig", "ShellConfig", "GrowthConfig", "ChemistryConfig",
            "InitialConfig", "OutputConfig", "StaticSolver", "ContinuationSolver", "TimeSolver", "BoundaryConfig",
            "LoadConfig"]
@@ -452,8 +452,28 @@ class TimeSolver:
     backend: str = _backend()
 
 
+@dataclass(frozen=True)
+class PatternContinuationSolver(TimeSolver):
+    """A time scene's loop to its end, then its stationary pattern followed in a model parameter (theory §2.9)."""
+
+    kind: str = "pattern-continuation"
+    parameter: str = key(S, "the model parameter the stationary pattern is followed in", required=True,
+                         choices=("w", "beta", "D", "c_star", "h0", "lam_ratio"))
+    stop: float | None = key(F, "stop exactly at this value of the parameter")
+    direction: int = key(I, "+1: set off towards larger values, -1: smaller", 1, lo=-1, hi=1)
+    continuation_ds: float = key(F, "first arclength step (weighted, dimensionless)", 0.02, **POS)
+    continuation_ds_max: float | None = key(F, "largest arclength step (default 10 continuation_ds)", **POS)
+    continuation_steps: int = key(I, "accepted points of the branch", 50, lo=1)
+    stop_at: tuple = key("strlist", "stop after a 'fold' or 'branch' point", [])
+    n_modes: int = key(I, "leading eigenvalues of the coupled dynamics recorded per point", 4, lo=1, hi=20)
+    stationary_tol: float = key(F, "Newton tolerance of the stationary state the branch starts from", 1e-9, **POS)
+
+
+#: solver kinds that run the mechanochemical time loop (chemistry, initial condition, time controls)
+TIME_KINDS = ("time", "pattern-continuation")
+
 SOLVER_CONFIGS = {"static": StaticSolver, "continuation": ContinuationSolver, "time": TimeSolver,
-                  "linear-buckling": LinearBucklingSolver}
+                  "linear-buckling": LinearBucklingSolver, "pattern-continuation": PatternContinuationSolver}
 
 
 # ----------------------------------------------------------------------------- boundary conditions and loads

@@ -77,7 +77,7 @@ def write_pattern_branch(branch, problem, directory, *, parameter=None, pictures
 
             pictures_of_modes.append(view_grid(
                 deformed.points, deformed.triangles,
-                {"critical mode: c": fields["mode_0_c"], "critical mode: normal displacement": fields["mode_0_normal"]},
+                {"mode c": fields["mode_0_c"], "mode w_n": fields["mode_0_normal"]},
                 stem.parent / f"{stem.name}-mode.png", title=stem.name))
         return path
 

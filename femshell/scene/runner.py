@@ -106,6 +106,10 @@ def runner_class(kind: str):
         from .buckling_runner import LinearBucklingRunner      # deferred: as the continuation runner
 
         return LinearBucklingRunner
+    if kind == "pattern-continuation":
+        from .pattern_runner import PatternContinuationRunner  # deferred: as the continuation runner
+
+        return PatternContinuationRunner
     return {"time": TimeRunner, "static": StaticRunner}[kind]
 
 

@@ -17,7 +17,7 @@ in 1/β, E = 1 by default: theory §1.3)::
                   uniform: strain (s = 1 + strain everywhere)
                   inner_region: strain, inner_radius, transition (the disk test, theory §1.6)
                   contractility: lam_max, lam_min, lam0, b, c_star (theory §1.1)
-    [chemistry]   D, w, Hs, beta (only with solver.kind = "time")
+    [chemistry]   D, w, Hs, beta (only with solver.kind = "time" or "pattern-continuation")
     [[boundary]]  type = "clamped" | "simply_supported" | "symmetry" | "prescribed", curve = "name"
                   (symmetry: axis, value; prescribed: components, displacement)
     [[loads]]     type = "point_force" | "area_load" | "edge_force" | "dead_pressure"
@@ -25,7 +25,8 @@ in 1/β, E = 1 by default: theory §1.3)::
                   pressure, moment); all loads are multiplied by the load factor
     [initial]     kind = "spot" | "spots" | "none"; amplitude, width, elongation, pole, direction,
                   distance; spots: layout = "icosahedron" | "random", count, seed
-    [solver]      kind = "static" | "continuation" | "time" | "linear-buckling" and its controls (SOLVER_KEYS)
+    [solver]      kind = "static" | "continuation" | "time" | "linear-buckling" | "pattern-continuation" and its
+                  controls (SOLVER_KEYS)
     [output]      every, checkpoint_every, pictures, movie, fields, picture_field, cmap,
                   progress_interval
 
@@ -46,7 +47,7 @@ import difflib
 import math
 from pathlib import Path
 
-from .config import (BOUNDARY_TYPES, LOAD_OPTIONAL, LOAD_TYPES, MESH_CONFIGS, SOLVER_CONFIGS, BoundaryConfig,
+from .config import (BOUNDARY_TYPES, LOAD_OPTIONAL, LOAD_TYPES, MESH_CONFIGS, SOLVER_CONFIGS, TIME_KINDS, BoundaryConfig,
                      ChemistryConfig, GROWTH_LAWS, GrowthConfig, InitialConfig, LoadConfig, MaterialConfig,
                      OutputConfig, Scene, ShellConfig, Spec, _fmt, specs)
 # re-exported: the scene's text functions were this module's
@@ -90,6 +91,7 @@ SECTIONS = {"material": specs(MaterialConfig), "shell": specs(ShellConfig), "gro
             "chemistry": specs(ChemistryConfig), "initial": specs(InitialConfig), "output": specs(OutputConfig)}
 
 SOLVER_KEYS = {kind: specs(cls) for kind, cls in SOLVER_CONFIGS.items()}
+_KINDS_TEXT = ", ".join(f'"{k}"' for k in SOLVER_CONFIGS)
 
 BOUNDARY_KEYS = {t: specs(BoundaryConfig, names, t) for t, names in BOUNDARY_TYPES.items()}
 
@@ -278,7 +280,7 @@ def _solver_section(ck, raw) -> dict:
     """[solver], checked first: the other sections depend on its kind."""
     solver_raw = raw.get("solver")
     if solver_raw is None:
-        ck.err("[solver] is missing: give kind = \"static\", \"continuation\", \"time\" or \"linear-buckling\"")
+        ck.err(f"[solver] is missing: give kind = {_KINDS_TEXT}")
         solver_raw = {}
     if not isinstance(solver_raw, dict):
         ck.err("[solver] must be a table")
@@ -286,10 +288,10 @@ def _solver_section(ck, raw) -> dict:
     kind = solver_raw.get("kind")
     if kind is None:
         if isinstance(raw.get("solver"), dict):
-            ck.err("[solver] kind is required: \"static\", \"continuation\", \"time\" or \"linear-buckling\"")
+            ck.err(f"[solver] kind is required: {_KINDS_TEXT}")
     elif kind not in SOLVER_KEYS:
         s = _suggest(kind, SOLVER_KEYS)
-        ck.err(f"[solver] kind = {_show(kind)} is not one of \"static\", \"continuation\", \"time\", \"linear-buckling\""
+        ck.err(f"[solver] kind = {_show(kind)} is not one of {_KINDS_TEXT}"
                f"{'; did you mean ' + _show(s) + '?' if s else ''}")
         kind = None
     if kind is not None:
@@ -354,7 +356,7 @@ def _growth_section(ck, raw, data, kind):
     if not isinstance(g_raw, dict):
         ck.err("[growth] must be a table")
         g_raw = {}
-    law = g_raw.get("law", "contractility" if kind == "time" else ("none" if not g_raw else None))
+    law = g_raw.get("law", "contractility" if kind in TIME_KINDS else ("none" if not g_raw else None))
     if law is None:
         ck.err("[growth] law is required: \"uniform\", \"inner_region\", \"contractility\" or \"none\"")
         data["growth"] = {"law": None}
@@ -383,7 +385,7 @@ def _time_sections(ck, raw, data, kind, law):
         if sec in raw and kind in ("static", "continuation", "linear-buckling"):
             ck.err(f"[{sec}] is given but solver.kind = \"{kind}\" has no chemistry (only kind = \"time\" "
                    "runs the mechanochemical loop); remove the section")
-    if kind == "time":
+    if kind in TIME_KINDS:
         data["chemistry"] = ck.section("[chemistry]", raw.get("chemistry", {}), SECTIONS["chemistry"])
         data["initial"] = ck.section("[initial]", raw.get("initial", {}), SECTIONS["initial"])
         if law is not None and law != "contractility":
@@ -465,7 +467,7 @@ def _load_list(ck, raw, mesh, curves, kind) -> list:
     if not isinstance(l_raw, list):
         ck.err("loads must be a list of tables: write each load as [[loads]]")
         l_raw = []
-    if l_raw and kind == "time":
+    if l_raw and kind in TIME_KINDS:
         ck.err("[[loads]] are not supported by the time loop (solver.kind = \"time\"); use \"static\" or "
                "\"continuation\"")
     for i, ld in enumerate(l_raw):
@@ -570,7 +572,7 @@ def _solver_consistency(ck, data, kind, law):
         if start is not None and start == stop:
             given = "start" if solver.get("start") is not None else f"the start ({solver['parameter']})"
             ck.err(f"[solver] stop = {_fmt(stop)} equals {given} = {_fmt(start)}: nothing to follow")
-    if kind == "time":
+    if kind in TIME_KINDS:
         st = solver
         if all(st.get(k) is not None for k in ("dt_min", "dt_max")) and st["dt_max"] < st["dt_min"]:
             ck.err(f"[solver] dt_max = {_fmt(st['dt_max'])} is out of range: dt_min = {_fmt(st['dt_min'])} <= dt_max")
@@ -584,7 +586,8 @@ def _output_section(ck, raw, data, kind):
     """[output]: fields, picture field and colour map against what the scene has."""
     data["output"] = ck.section("[output]", raw.get("output", {}), SECTIONS["output"])
     out = data["output"]
-    have = [f for f, (_, scope, _) in FIELDS.items() if scope == "any" or scope == kind]
+    have = [f for f, (_, scope, _) in FIELDS.items() if scope == "any" or scope == kind
+            or (scope == "time" and kind in TIME_KINDS)]
     if out.get("fields") is None:
         out["fields"] = have
     else:
@@ -597,7 +600,7 @@ def _output_section(ck, raw, data, kind):
                 ck.err(f"[output] fields: '{f}' exists only in time-loop scenes (solver.kind = \"time\")")
     pf = out.get("picture_field")
     if pf is None:
-        out["picture_field"] = "c" if kind == "time" else "displacement"
+        out["picture_field"] = "c" if kind in TIME_KINDS else "displacement"
     elif pf not in have and pf not in ("radius", "z"):
         ck.err(f"[output] picture_field = {_show(pf)} is not a field of this scene (fields: {', '.join(have)}, "
                "radius, z)")
