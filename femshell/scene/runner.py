@@ -64,15 +64,13 @@ terminal leaves it running, SIGTERM (``kill PID``) stops it as Ctrl-C would.
 
 from __future__ import annotations
 
-import contextlib
 import re
 import sys
-import threading
 import time
 from dataclasses import asdict
 from pathlib import Path
 
-from .. import io as fio
+from .. import _periodic as periodic, io as fio
 from .._interrupts import interruptible
 from ..mesh import check_mesh
 from .base_runner import FINAL, FOLD_WARNING_DEG, BaseRunner, StepFailure
@@ -351,23 +349,11 @@ def with_estimate(lines: list) -> list:
     return lines[:i + 1] + [f"  estimate   {Estimate(int(m.group(1))).text()}"] + lines[i + 1:]
 
 
-@contextlib.contextmanager
 def _heartbeat(stream, text, t0, every=15.0):
     """Print ``text`` with the seconds since ``t0`` every ``every`` seconds while the block runs (gmsh
     releases the GIL while it meshes)."""
-    done = threading.Event()
-
-    def beat():
-        while not done.wait(every):
-            print(f"{text} ({time.perf_counter() - t0:.0f} s)", file=stream, flush=True)
-
-    th = threading.Thread(target=beat, daemon=True)
-    th.start()
-    try:
-        yield
-    finally:
-        done.set()
-        th.join()
+    return periodic.every(every, lambda: print(f"{text} ({time.perf_counter() - t0:.0f} s)", file=stream, flush=True),
+                          name="femshell-heartbeat")
 
 
 def pictures_pending(path) -> bool:

@@ -12,15 +12,13 @@ worker and raises the run's interrupt flag (:func:`femshell._interrupts.request_
 
 from __future__ import annotations
 
-import contextlib
 import os
 import socket
-import threading
 import time
 import traceback
 from pathlib import Path
 
-from .. import _interrupts
+from .. import _interrupts, _periodic as periodic
 from ..config import configure
 from ..scene import run_scene
 from ..scene.rundir import CHECKPOINT, RunDir, RunDirError
@@ -47,24 +45,15 @@ def _worker():
     return w.address, cancelled
 
 
-@contextlib.contextmanager
 def _stop_when_cancelled(cancelled):
     """Raise the run's interrupt flag once ``cancelled()`` says so, while the block runs."""
-    done = threading.Event()
-
     def watch():
-        while not done.wait(WATCH_INTERVAL):
-            if cancelled():
-                _interrupts.request_interrupt()
-                return
+        if cancelled():
+            _interrupts.request_interrupt()
+            return True
+        return False
 
-    th = threading.Thread(target=watch, daemon=True, name="femshell-sweep-watch")
-    th.start()
-    try:
-        yield
-    finally:
-        done.set()
-        th.join()
+    return periodic.every(WATCH_INTERVAL, watch, name="femshell-sweep-watch")
 
 
 def _start(path: Path) -> dict:
