@@ -1,10 +1,15 @@
-"""femshell.analysis.regimes: the regime rules on synthetic fields on a sphere with known answers."""
+"""femshell.analysis.regimes: the regime rules on synthetic fields on a sphere with known answers, and the
+embedded regime scenes (each names its regime; slow: each reaches it)."""
+
+import json
 
 import numpy as np
 import pytest
 
 from femshell.analysis import REGIMES, classify_regime, find_spots, regime_of_field
+from femshell.cli import main
 from femshell.mesh.generators import sphere
+from femshell.scene import list_scenes, load_scene
 
 R = 10.0
 C_STAR = 0.3
@@ -79,3 +84,32 @@ def test_every_rule_is_reachable_and_ordered():
 def test_bad_pattern_is_named(bad, words):
     with pytest.raises(ValueError, match=words):
         classify_regime(bad)
+
+
+# ----------------------------------------------------------------------------- the regime scenes
+
+#: each embedded regime scene and the regime its description names (docs/regimes.md)
+REGIME_SCENES = {"sphere-regime-decay": "decay", "sphere-regime-single-bulge": "single bulge",
+                 "default": "spots", "sphere-regime-mixed": "mixed"}
+
+
+def test_regime_scenes_name_their_regime():
+    scenes = list_scenes()
+    assert {name for name in scenes if name.startswith("sphere-regime-")} <= set(REGIME_SCENES)
+    for name, regime in REGIME_SCENES.items():
+        assert f"'{regime}'" in scenes[name] or (name == "default" and "spots over the sphere" in scenes[name])
+        sc = load_scene(name)
+        assert sc["mesh"]["radius"] == 15.0 and sc["initial"]["kind"] == "spot"      # one seed, as the paper
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(REGIME_SCENES))
+def test_regime_scene_reaches_its_regime(name, tmp_path):
+    # the whole scene as shipped (1-5 CPU-minutes each): the classifier's regime of its end state, and
+    # the shape resolved (no fold past the run's warning limit)
+    out = tmp_path / name
+    assert main(["run", name, "--out", str(out), "-q", "--set", "output.pictures=false"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] in ("t_final", "stationary")
+    assert classify_regime(summary["final"]["pattern"]) == REGIME_SCENES[name]
+    assert summary["final"]["edges_folded_over_limit"] == 0

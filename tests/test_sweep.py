@@ -171,3 +171,15 @@ def test_ctrl_c_then_resume_through_a_killed_worker(tmp_path):
     assert summ["status"] == "t_final" and summ["final"]["t"] == pytest.approx(0.12) and summ["resumes"] >= 2
     assert read_results(out)[0]["status"] == "t_final"
     assert json.loads((out / "manifest.json").read_text())["state"]["000_c_star=0.35"]["status"] == "finished"
+
+
+STUDY_SPECS = Path(__file__).resolve().parents[1] / "validation" / "regimes"
+
+
+@pytest.mark.parametrize("path", sorted(STUDY_SPECS.glob("*.toml")), ids=lambda p: p.stem)
+def test_the_shipped_study_specs_are_valid(path):
+    # every point's scene is validated as `femshell sweep` would before starting; each study has three
+    # points or more, on the R = 15 sphere at edge 1.1 to t <= 100 (docs/regimes.md)
+    spec = load_spec(path)
+    assert len(spec.points) >= 3 and spec.fixed["mesh.edge_length"] == 1.1
+    assert spec.fixed["solver.t_final"] == 100.0 and spec.description

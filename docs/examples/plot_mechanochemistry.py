@@ -5,7 +5,7 @@ A mechanochemical run, from the command line and from Python
 The model of Zakharov & Dasbiswas on a real shell (:doc:`/theory`, §1.1–1.4): a chemical
 c made where the shell bulges outward lowers the contractility, the tissue there grows,
 the growth buckles the shell outward, and the bulge makes more chemical. This example
-runs the README's default scene at a reduced size with ``femshell run``, stops and
+runs the twelve-spot scene ``sphere-seeded-spots`` at a reduced size with ``femshell run``, stops and
 resumes it, reads its outputs, renders a movie, counts the spots with
 :func:`femshell.analysis.find_spots`, and runs the same physics from Python with
 :mod:`femshell.coupled`.
@@ -52,9 +52,12 @@ def femshell(command, check=True):
 # ----------
 # ``femshell scenes`` lists the embedded scenes; ``femshell scenes NAME`` prints one as
 # TOML, the start of your own (:doc:`/guide/write-a-scene`). ``default`` is the README's:
-# a sphere of radius 15, thickness h = 2, c* = 0.1, D = 0, seeded with twelve Gaussian
-# spots at the vertices of an icosahedron. The ``sphere-*`` scenes are the paper's
-# scenarios at the paper's resolution (:doc:`/studies/sphere-patterns`).
+# one seeded spot that spreads into spots over a sphere of radius 15 in a few minutes
+# (:doc:`/regimes`). This example runs ``sphere-seeded-spots``: the same sphere,
+# thickness h = 2, c* = 0.1, D = 0, seeded with twelve Gaussian spots at the vertices of an
+# icosahedron, so that a run of seconds shows bulges. The other ``sphere-*`` scenes are the
+# paper's scenarios at the paper's resolution (:doc:`/studies/sphere-patterns`) and the
+# regimes of the continuum model (``sphere-regime-*``).
 
 femshell("femshell scenes")
 
@@ -70,8 +73,8 @@ femshell("femshell scenes")
 run = out / "run"
 n_vertices, t_final = (800, 0.5) if args.full else (150, 0.12)
 size = f"--set mesh.n_vertices={n_vertices} --set solver.t_final={t_final}"
-femshell(f"femshell run default --out {run} {size} --dry-run")
-femshell(f"femshell run default --out {run} {size} --overwrite --max-steps 2")
+femshell(f"femshell run sphere-seeded-spots --out {run} {size} --dry-run")
+femshell(f"femshell run sphere-seeded-spots --out {run} {size} --overwrite --max-steps 2")
 femshell(f"femshell run --out {run} --resume")
 
 # %%

@@ -2,8 +2,8 @@
 
 The vertex count comes from the ``[mesh]`` section (``n_vertices``, or the surface's area over
 an equilateral triangle's for ``edge_length``; :func:`expected_vertices`); memory and time are
-fitted to runs of the embedded ``default`` scene (sphere, time loop, neo-Hookean membrane) on
-2 cores (:class:`Estimate`):
+fitted to runs of the embedded ``sphere-seeded-spots`` scene (sphere, time loop, neo-Hookean
+membrane) on 2 cores (:class:`Estimate`):
 
     memory    ≈ MEM_BASE + MEM_PER_VERTEX · N            (peak resident memory of the run, bytes)
     meshing   ≈ MESH_S_PER_VERTEX · N                     (gmsh, seconds)
@@ -25,7 +25,7 @@ from ..mesh.generators import AREA_FACTOR, AREA_FACTOR_FLAT, BOUNDARY_LINEAR, SP
 
 __all__ = ["expected_vertices", "estimate", "machine_memory", "Estimate"]
 
-# fitted to the default scene (sphere, time loop, neo-Hookean membrane); see the module docstring
+# fitted to the sphere-seeded-spots scene (sphere, time loop, neo-Hookean membrane); see the module docstring
 MEM_BASE = 0.73e9
 MEM_PER_VERTEX = 105e3
 MESH_S_PER_VERTEX = 3.4e-4
