@@ -146,6 +146,11 @@ class BaseRunner:
         self.p.step(text, fraction)
 
     def write_frame(self):
+        """The state's frame; a step that left the state where the series ends (the same series time: a
+        linear-buckling or pattern-continuation step after its ramp or loop) adds none."""
+        if self.writer.entries and self.writer.entries[-1][0] == self.series_time():
+            self.last_frame_step = self.step
+            return
         t, pts, pd, cd = self.frame()
         self.writer.write(t, points=pts, point_data=pd, cell_data=cd)
         self.last_frame_step = self.step

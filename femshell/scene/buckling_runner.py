@@ -67,13 +67,6 @@ class LinearBucklingRunner(StaticRunner):
         shown = ", ".join(f"{p:.6g}" for p in res.parameters[:4]) + (" ..." if len(res.parameters) > 4 else "")
         return f"linear buckling at factor {self.mu:.4g}: critical factors {shown or 'none'}", 1.0
 
-    def write_frame(self):
-        """The buckling step leaves the state as it was: its frame is the last one."""
-        if self.writer.entries and self.writer.entries[-1][0] == self.series_time():
-            self.last_frame_step = self.step
-            return
-        super().write_frame()
-
     def _write_modes(self):
         res = self.result
         x = self.parts.model.positions(self.u)

@@ -69,13 +69,6 @@ class PatternContinuationRunner(TimeRunner):
         return (f"pattern continuation in {so.parameter}: {len(b.rows)} points, {b.status} ({b.message}); {found}",
                 1.0)
 
-    def write_frame(self):
-        """The continuation step leaves the loop's state as it was: its frame is the last one."""
-        if self.writer.entries and self.writer.entries[-1][0] == self.series_time():
-            self.last_frame_step = self.step
-            return
-        super().write_frame()
-
     def final_status(self):
         if self.branch is None:
             return super().final_status()
