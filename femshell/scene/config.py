@@ -321,6 +321,14 @@ class OutputConfig:
 NEWTON_KEYS = ("newton_rtol", "newton_max_iter", "backend")
 
 
+def _max_cuts():
+    return key(I, "halvings of a failed increment before giving up", 8, lo=0)
+
+
+def _stable():
+    return key(B, "find stable equilibria (escape saddles)", True)
+
+
 def _newton_rtol():
     return key(F, "Newton tolerance relative to the residual scale", **POS)
 
@@ -339,8 +347,8 @@ class StaticSolver:
 
     kind: str = "static"
     steps: int = key(I, "increments of the load factor / growth from 0 to 1", 10, lo=1)
-    max_cuts: int = key(I, "halvings of a failed increment before giving up", 8, lo=0)
-    stable: bool = key(B, "find stable equilibria (escape saddles)", True)
+    max_cuts: int = _max_cuts()
+    stable: bool = _stable()
     newton_rtol: float | None = _newton_rtol()
     newton_max_iter: int | None = _newton_max_iter()
     backend: str = _backend()
@@ -386,8 +394,8 @@ class LinearBucklingSolver:
     target: float | None = key(F, "look for the factors nearest this one (default: the smallest above at)",
                                lo=-1e12, hi=1e12)
     steps: int = key(I, "increments of the factor from 0 to at", 10, lo=1)
-    max_cuts: int = key(I, "halvings of a failed increment before giving up", 8, lo=0)
-    stable: bool = key(B, "find stable equilibria (escape saddles)", True)
+    max_cuts: int = _max_cuts()
+    stable: bool = _stable()
     newton_rtol: float | None = _newton_rtol()
     newton_max_iter: int | None = _newton_max_iter()
     backend: str = _backend()
