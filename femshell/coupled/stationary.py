@@ -13,8 +13,8 @@ is therefore a root. :meth:`StationaryProblem.jacobian` is the exact Jacobian
     J = [[K_uu, ∂F_u/∂c], [∂F_c/∂u, −β M − D K]]
 
 (:mod:`femshell.coupled.stationary_jacobian` for the two coupling blocks); it is not symmetric and is
-factorised by SuperLU's LU with partial pivoting (:mod:`femshell.solvers.linear` has only symmetric
-kinds). :func:`stationary_state` runs Newton on it from a loop's state.
+factorised by SuperLU's LU with partial pivoting (:class:`femshell.solvers.lu.LUFactorization`).
+:func:`stationary_state` runs Newton on it from a loop's state.
 
 Example
 -------
@@ -31,10 +31,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .._checks import finite as _finite, integer as _integer
 from ..growth import element_average
+from ..solvers.linear import LinearSolverError
+from ..solvers.lu import LUFactorization
 from .equilibrium import strain_force_unit
 from .stationary_jacobian import chemistry_element_derivatives, force_stretch_derivative
 
@@ -228,8 +229,8 @@ def _newton(problem, z, tol, max_iter):
         if it == max_iter:
             break
         try:
-            step = -spla.splu(problem.jacobian(z).tocsc()).solve(f)
-        except RuntimeError as exc:                     # SuperLU: "Factor is exactly singular"
+            step = -LUFactorization(problem.jacobian(z)).solve(f)
+        except LinearSolverError as exc:
             u, c = problem.split(z)
             return StationaryResult(u.copy(), c.copy(), False, it, history, f"singular Jacobian: {exc}")
         for _ in range(21):
