@@ -3,8 +3,9 @@
 Each example is a literate script that sphinx-gallery renders with its output; here each
 runs as a script, at its default (small) size, in a subprocess with this Python and a
 temporary --out, and its results.json is checked against theory or invariants. They run
-in the CI selection, so an example that breaks is seen at once; the docs test
-(tests/test_docs.py) builds the site running only the quickest of them.
+in the CI selection (all but the pattern continuation's, which is slow), so an example that
+breaks is seen at once; the docs test (tests/test_docs.py) builds the site running only the
+quickest of them.
 """
 
 import json
@@ -18,7 +19,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "docs" / "examples"
-NAMES = ("buckling", "mechanochemistry", "convergence", "plate_pressure", "sphere_spot")
+NAMES = ("buckling", "mechanochemistry", "convergence", "plate_pressure", "sphere_spot", "pattern_continuation")
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -115,3 +116,49 @@ def test_sphere_spot(tmp_path):
     # the seeded spot sustains itself as one outward bulge; c stays in [0, w Hs / beta]
     assert res["n_spots"] == 1 and res["max_height"] > 0
     assert 0 <= res["min_c"] and 0 < res["max_c"] <= res["c_saturation"] + 1e-9
+
+
+@pytest.mark.slow
+def test_pattern_continuation(tmp_path):
+    """About 45 s CPU (a time run, Newton, 17 continuation steps with their eigenproblems), 2-3 min on
+    loaded shared cores. The same sphere's fold and stability are checked, not slow, in
+    tests/test_pattern_continuation.py; the page's code against the script below."""
+    out, res, stdout = run_example("pattern_continuation", tmp_path)
+    for f in ("bifurcation.png", "critical-mode.png", "pattern/w-branch.csv", "pattern/w-special-points.json",
+              "pattern/w-special-00-fold.vtu"):
+        assert (out / f).exists(), f
+    assert res["time_status"] == "stationary" and res["newton_converged"] and max(res["newton_residuals"]) <= 1e-9
+    # Newton's root is the time run's spot: a rate of c below r per unit time puts the run's state within
+    # about r max c / |mu_0| of a root that attracts at the rate |mu_0|
+    assert res["distance_c"] <= res["tolerance_c"]
+    # the time run went there, so the root attracts: every mu < 0; the slowest decays slower than beta (the page)
+    assert res["stable_root"] and all(m < 0 for m in res["mu_root"]) and -res["beta"] < res["mu_root"][0]
+    rows = res["rows"]
+    assert rows[0]["parameter"] == res["w0"] and rows[0]["max_c"] == pytest.approx(res["max_c_newton"], rel=1e-9)
+    # the fold comes from the sign of dw/ds, mu from the separate eigenproblem S v = mu M v; with the shell
+    # stable (det J = det K_uu det S) the two must agree: mu_0 = 0 at the fold, < 0 before it, > 0 after it
+    assert res["fold_located"] and res["w0"] < res["fold_w"] < 1.1 * res["w0"]
+    assert abs(res["fold_mu_0"]) <= 1e-4 * res["beta"]
+    plain = [r for r in rows if not r["special"]]
+    before = [r for r in plain if r["dlam_ds"] > 0]
+    after = [r for r in plain if r["dlam_ds"] < 0]
+    assert before and after and all(r["n_negative_mechanical"] == 0 for r in plain)
+    assert all(r["stable"] and r["mu_0"] < 0 for r in before) and all(not r["stable"] and r["mu_0"] > 0 for r in after)
+    assert all(r["parameter"] < res["fold_w"] for r in plain)
+    assert before[-1]["max_c"] > before[0]["max_c"] and before[-1]["spot_radius"] > before[0]["spot_radius"]
+    # the text's reading of the mode: it peaks where rim elements sit inside the switch of s(c)
+    assert res["switching_elements_at_peak"] >= 1
+
+
+def test_pattern_continuation_tutorial_quotes_the_example():
+    """The tutorial page's code is lines of the example it walks through, so the two cannot drift apart."""
+    import re
+
+    guide = (ROOT / "docs" / "guide" / "pattern-continuation.md").read_text(encoding="utf-8")
+    script = {line.strip() for line in (EXAMPLES / "plot_pattern_continuation.py").read_text(encoding="utf-8").splitlines()}
+    blocks = re.findall(r"^```python\n(.*?)^```", guide, flags=re.S | re.M)
+    assert len(blocks) >= 4
+    for block in blocks:
+        for line in block.splitlines():
+            code = line.split("  #")[0].strip()
+            assert not code or code.startswith("#") or code in script, line
