@@ -182,4 +182,4 @@ def test_the_shipped_study_specs_are_valid(path):
     # points or more, on the R = 15 sphere at edge 1.1 to t <= 100 (docs/regimes.md)
     spec = load_spec(path)
     assert len(spec.points) >= 3 and spec.fixed["mesh.edge_length"] == 1.1
-    assert spec.fixed["solver.t_final"] == 100.0 and spec.description
+    assert 0 < spec.fixed["solver.t_final"] <= 100.0 and spec.description

@@ -2,7 +2,8 @@
 
 ``phase_diagram.png`` — one marker per point over the spec's plot axes x and y ([plot], default the
 first two axes of [vary]), its shape and colour the regime (:func:`femshell.analysis.classify_regime`)
-and its label N_spots; a point that failed or has not finished is a grey cross or circle. The other
+and its label N_spots; a point that has not finished is drawn hollow, with the regime of its last state
+and the time reached (grey when it has none yet), and a failed point is a grey cross. The other
 axes make the panels, one per combination of their values. ``contact_sheet.png`` — each point's
 ``pictures/top.png`` (drawn by its run) under its values, in the spec's order.
 """
@@ -48,16 +49,21 @@ def _phase_panel(ax, manifest, table, x, y, panel):
         if any(p["values"][a] != v for a, v in panel.items()):
             continue
         px, py = xs[p["values"][x]], ys[p["values"][y] if y else None]
-        regime = row.get("regime")
-        if manifest["state"][p["key"]]["status"] == "finished" and regime in STYLE:
+        regime, status = row.get("regime"), manifest["state"][p["key"]]["status"]
+        if status == "failed":
+            ax.scatter(px, py, marker="x", s=90, color="0.5", zorder=3)
+        elif regime in STYLE:
             marker, colour = STYLE[regime]
-            ax.scatter(px, py, marker=marker, s=140, color=colour, edgecolor="k", zorder=3)
-            if row.get("n_spots") is not None:
-                ax.annotate(str(row["n_spots"]), (px, py), textcoords="offset points", xytext=(9, 6), fontsize=8)
+            finished = status == "finished"
+            ax.scatter(px, py, marker=marker, s=140, zorder=3, linewidths=1.0 if finished else 2.0,
+                       facecolor=colour if finished else "none", edgecolor="k" if finished else colour)
+            label = "" if row.get("n_spots") is None else str(row["n_spots"])
+            if not finished and row.get("t") is not None:
+                label += f" (t = {row['t']:.3g})"
+            if label:
+                ax.annotate(label, (px, py), textcoords="offset points", xytext=(9, 6), fontsize=8)
         else:
-            failed = manifest["state"][p["key"]]["status"] == "failed"
-            ax.scatter(px, py, marker="x" if failed else "o", s=90, color="0.5",
-                       facecolor="none" if not failed else None, zorder=3)
+            ax.scatter(px, py, marker="o", s=90, color="0.5", facecolor="none", zorder=3)
     ax.set_xticks(list(xs.values()), [value_text(v) for v in xs])
     ax.set_yticks(list(ys.values()), [value_text(v) for v in ys] if y else [""])
     ax.set_xlabel(names[x])
@@ -91,7 +97,7 @@ def phase_diagram(out: Path, manifest: dict, table: list) -> Path:
                for r, (m, c) in STYLE.items()]
     handles += [Line2D([], [], marker="x", color="0.5", linestyle="", markersize=9, label="failed"),
                 Line2D([], [], marker="o", color="0.5", markerfacecolor="none", linestyle="", markersize=9,
-                       label="not finished")]
+                       label="not finished (hollow: its regime so far)")]
     fig.suptitle(manifest.get("description") or f"regimes over {', '.join(manifest['axes'])}", fontsize=10)
     fig.tight_layout()
     fig.legend(handles=handles, loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8,
@@ -123,8 +129,11 @@ def contact_sheet(out: Path, manifest: dict, table: list) -> Path:
         else:
             ax.text(0.5, 0.5, f"no picture\n({row.get('status')})", ha="center", va="center", fontsize=8,
                     transform=ax.transAxes)
-        label = "\n".join([", ".join(f"{names[a]}={value_text(v)}" for a, v in p["values"].items()),
-                           f"{row.get('regime') or row.get('status')}"])
+        status = manifest["state"][p["key"]]["status"]
+        verdict = row.get("regime") or row.get("status")
+        if status not in ("finished", "failed") and row.get("regime") and row.get("t") is not None:
+            verdict = f"{row['regime']} so far ({status} at t = {row['t']:.3g})"
+        label = "\n".join([", ".join(f"{names[a]}={value_text(v)}" for a, v in p["values"].items()), verdict])
         ax.set_title(label, fontsize=7)
         ax.set_xticks([])
         ax.set_yticks([])
