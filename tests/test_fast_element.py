@@ -56,6 +56,9 @@ def test_compiled_element_equals_jax(square, law, bcs):
     assert np.all(np.abs(h - h_ref) <= 1e-12 * np.abs(h_ref).max(axis=(1, 2))[:, None, None])
     assert np.array_equal(h, np.swapaxes(h, 1, 2))                      # exactly symmetric
     np.testing.assert_array_equal(fast_element.hessians(law, *args), h)
+    e_only, g_only = fast_element.energies_and_gradients(law, *args)    # the reverse sweeps alone: the same bits
+    np.testing.assert_array_equal(e_only, e)
+    np.testing.assert_array_equal(g_only, g)
 
 
 def test_model_hessian_compiled_by_default_and_jax_on_request(square):
@@ -68,6 +71,22 @@ def test_model_hessian_compiled_by_default_and_jax_on_request(square):
     assert np.abs(K.data - K_jax.data).max() <= 1e-12 * np.abs(K_jax.data).max()
     with pytest.raises(ValueError, match=r"hessian_kernel must be one of \('compiled', 'jax'\), got 'numba'"):
         ShellModel(square, Material(), model.rest, hessian_kernel="numba")
+
+
+def test_model_energy_and_gradient_compiled_by_default_and_jax_on_request(square):
+    """The model's energy and gradient come from the compiled kernel (energy() and energy_and_gradient()'s energy
+    then agree bit for bit), equal to the JAX reference's to rounding."""
+    model, u = _grown_model(square, "svk", [Clamped("left")], seed=7)
+    assert model.gradient_kernel == "compiled"
+    e, g = model.energy_and_gradient(u)
+    assert e == model.energy(u)
+    np.testing.assert_array_equal(g, model.gradient(u))
+    model.gradient_kernel = "jax"
+    e_jax, g_jax = model.energy_and_gradient(u)
+    assert abs(e - e_jax) <= 1e-12 * abs(e_jax) and abs(model.energy(u) - e_jax) <= 1e-12 * abs(e_jax)
+    assert np.abs(g - g_jax).max() <= 1e-12 * np.abs(g_jax).max()
+    with pytest.raises(ValueError, match=r"gradient_kernel must be one of \('compiled', 'jax'\), got 'numba'"):
+        ShellModel(square, Material(), model.rest, gradient_kernel="numba")
 
 
 def test_jax_hessian_against_finite_differences():
@@ -95,6 +114,9 @@ def test_chunks_on_threads_give_the_same_bits():
     with ThreadPoolExecutor(3) as pool:
         np.testing.assert_array_equal(fast_element.hessians("svk", *args, executor=pool),
                                       fast_element.hessians("svk", *args))
+        for threaded, alone in zip(fast_element.energies_and_gradients("svk", *args, executor=pool),
+                                   fast_element.energies_and_gradients("svk", *args)):
+            np.testing.assert_array_equal(threaded, alone)
 
 
 def test_without_a_compiler_the_jax_path_serves(square, monkeypatch, tmp_path):
@@ -107,8 +129,10 @@ def test_without_a_compiler_the_jax_path_serves(square, monkeypatch, tmp_path):
     assert fast_element.unavailable() == "no compiler"
     model, u = _grown_model(square, "svk", [], seed=5)
     K = model.hessian(u)                                                # falls back to JAX
-    model.hessian_kernel = "jax"
+    e, g = model.energy_and_gradient(u)
+    model.hessian_kernel = model.gradient_kernel = "jax"
     np.testing.assert_array_equal(K.data, model.hessian(u).data)
+    assert (e, g.tolist()) == (model.energy_and_gradient(u)[0], model.energy_and_gradient(u)[1].tolist())
     with pytest.raises(RuntimeError, match="compiled element kernel is unavailable: no compiler"):
         fast_element.hessians("svk", *model._element_args(model.full(u)))
 

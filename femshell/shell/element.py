@@ -95,14 +95,14 @@ def element_energy(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, 
 
 _AXES = (0, 0, 0, 0, 0, None, None, 0, 0, 0)
 
-#: how element Hessians are computed: compiled C (the default) or JAX (the reference)
+#: how element Hessians (and energies and gradients) are computed: compiled C (the default) or JAX (the reference)
 HESSIAN_KERNELS = ("compiled", "jax")
 
 
-def check_hessian_kernel(name):
-    """``name`` if it is one of :data:`HESSIAN_KERNELS`, else a ValueError naming them."""
+def check_hessian_kernel(name, key="hessian_kernel"):
+    """``name`` if it is one of :data:`HESSIAN_KERNELS`, else a ValueError naming them (and ``key``)."""
     if name not in HESSIAN_KERNELS:
-        raise ValueError(f"hessian_kernel must be one of {HESSIAN_KERNELS}, got {name!r}")
+        raise ValueError(f"{key} must be one of {HESSIAN_KERNELS}, got {name!r}")
     return name
 CHUNK_SMALL, CHUNK = 256, 4096
 CHUNK_HESSIAN = 256
@@ -265,26 +265,34 @@ class Kernels:
         self.hessian_interior = _batched(_split_hessian(True, law_type, formulation), CHUNK_HESSIAN, CHUNK_HESSIAN)
         self.forms = _batched(functools.partial(_forms, formulation=formulation))
 
-    def evaluate(self, *args, gradient=False, hessian=False, interior=None, hessian_kernel="compiled"):
+    def evaluate(self, *args, gradient=False, hessian=False, interior=None, hessian_kernel="compiled",
+                 gradient_kernel="compiled"):
         """The one entry point: element energies (m,), with their gradients (m, 21) if ``gradient``
         and Hessians (m, 21, 21) if ``hessian`` (``interior``: the elements whose three edges are
-        interior, :meth:`hessian_grouped`; ``hessian_kernel``: one of :data:`HESSIAN_KERNELS`, compiled
-        only for the mid-edge formulation). Returns (energies, gradients or None, Hessians or None);
+        interior, :meth:`hessian_grouped`; ``hessian_kernel`` and ``gradient_kernel``, for the Hessians
+        and for the energies and gradients: one of :data:`HESSIAN_KERNELS`, compiled only for the
+        mid-edge formulation). Returns (energies, gradients or None, Hessians or None);
         energies are None when only the Hessian is asked for (it does not need them).
         """
         energies = gradients = hessians = None
-        if gradient:
-            energies, gradients = self.value_and_grad(*args)
-        elif not hessian:
-            energies = self.energy(*args)
-        if (hessian and check_hessian_kernel(hessian_kernel) == "compiled" and self.formulation is MidEdgeTangent
-                and fast_element.library() is not None):
-            threads = element_threads()
-            hessians = fast_element.hessians(self.law, *args, executor=_executor(threads) if threads > 1 else None)
+        if gradient or not hessian:
+            if check_hessian_kernel(gradient_kernel, "gradient_kernel") == "compiled" and self._compiled():
+                energies, gradients = fast_element.energies_and_gradients(self.law, *args, executor=_threads())
+                gradients = gradients if gradient else None
+            elif gradient:
+                energies, gradients = self.value_and_grad(*args)
+            else:
+                energies = self.energy(*args)
+        if hessian and check_hessian_kernel(hessian_kernel) == "compiled" and self._compiled():
+            hessians = fast_element.hessians(self.law, *args, executor=_threads())
         elif hessian:
             interior = (np.asarray(args[7]) == INTERIOR).all(axis=1) if interior is None else interior
             hessians = self.hessian_grouped(interior, *args)
         return energies, gradients, hessians
+
+    def _compiled(self) -> bool:
+        """Whether the compiled C kernel serves this formulation (and a compiler built it)."""
+        return self.formulation is MidEdgeTangent and fast_element.library() is not None
 
     def hessian_grouped(self, interior, q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign):
         """:attr:`hessian`, with the elements flagged in ``interior`` (all three edges
@@ -299,6 +307,12 @@ class Kernels:
             a = [np.asarray(v)[mask] for v in args]
             out[mask] = fn(a[0], a[1], a[2], a[3], a[4], alpha, beta, a[5], a[6], a[7])
         return out
+
+
+def _threads():
+    """The element kernels' thread pool, or None on one thread."""
+    threads = element_threads()
+    return _executor(threads) if threads > 1 else None
 
 
 def _forms(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign, formulation=MidEdgeTangent):

@@ -1,13 +1,15 @@
-r"""The element Hessian of :mod:`femshell.shell.element` as compiled C, in parallel over chunks of
-elements: the same split as there,
+r"""The element energy, gradient and Hessian of :mod:`femshell.shell.element` as compiled C, in parallel
+over chunks of elements. The Hessian by the same split as there,
 
 .. math::  \nabla^2 W = J^T \frac{\partial^2 W}{\partial z^2} J
            + \sum_{ij} \frac{\partial W}{\partial a_{ij}} \nabla^2 a_{ij}
            + \sum_k \frac{\partial W}{\partial q_k} \nabla^2 q_k,
 
+the energy and gradient :math:`\nabla W = J^T \partial W/\partial z` alone by the reverse sweeps
+(:func:`energies_and_gradients`, the same bits as :func:`hessians` gives them),
 with the value, gradient and Hessian of each :math:`q_k` and of W(z) generated as straight-line
 code (:mod:`femshell.shell.kernel_codegen`). Equal to the JAX kernels up to rounding (the tests
-compare them); the JAX path stays the reference (``ShellModel(..., hessian_kernel="jax")``).
+compare them); the JAX path stays the reference (``ShellModel(..., gradient_kernel="jax", hessian_kernel="jax")``).
 
 The source is compiled once by the system's C compiler (``$CC``, default ``cc``; about a second)
 into the kernel cache directory (:func:`femshell.config.default_kernel_cache_dir`), under a name
@@ -71,10 +73,12 @@ def _build():
                               f"{done.stderr.strip()[-500:]}")
             os.replace(lib, path)                  # atomic: a concurrent process loads a whole file or builds its own
     lib = ctypes.CDLL(str(path))
-    f = lib.element_hessians
     ptr = ctypes.c_void_p
-    f.argtypes = [ctypes.c_int64, ctypes.c_int64] + [ptr] * 5 + [ctypes.c_double] * 2 + [ptr] * 3 + [ctypes.c_int, ptr, ptr, ptr]
-    f.restype = None
+    head = [ctypes.c_int64, ctypes.c_int64] + [ptr] * 5 + [ctypes.c_double] * 2 + [ptr] * 3 + [ctypes.c_int]
+    lib.element_hessians.argtypes = head + [ptr, ptr, ptr]
+    lib.element_gradients.argtypes = head + [ptr, ptr]
+    for f in (lib.element_hessians, lib.element_gradients):
+        f.restype = None
     return lib
 
 
@@ -87,7 +91,7 @@ def library():
                 _state["lib"] = _build()
             except (OSError, subprocess.SubprocessError) as exc:
                 _state["error"] = str(exc)
-                warnings.warn(f"{exc}: element Hessians by JAX instead (slower)", RuntimeWarning, stacklevel=2)
+                warnings.warn(f"{exc}: element gradients and Hessians by JAX instead (slower)", RuntimeWarning, stacklevel=2)
         return _state["lib"]
 
 
@@ -104,9 +108,31 @@ def hessians(law, q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, s
     chunks of :data:`CHUNK` elements run on ``executor`` (a thread pool) when given. Each element's
     Hessian is computed alone: the same bits for any chunking or thread count.
     ``with_gradients``: (energies (m,), gradients (m, 21), Hessians) instead."""
+    m = len(q)
+    out = np.empty((m, 21, 21))
+    energies, gradients = (np.empty(m), np.empty((m, 21))) if with_gradients else (None, None)
+    _run("element_hessians", law, (q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign),
+         [out.ctypes.data, None if energies is None else energies.ctypes.data,
+          None if gradients is None else gradients.ctypes.data], executor)
+    return (energies, gradients, out) if with_gradients else out
+
+
+def energies_and_gradients(law, q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign, executor=None):
+    """Element energies (m,) and gradients (m, 21), as :func:`hessians` with ``with_gradients`` gives them (the
+    same bits) at a fraction of its cost: no Hessian is formed."""
+    m = len(q)
+    energies, gradients = np.empty(m), np.empty((m, 21))
+    _run("element_gradients", law, (q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign),
+         [energies.ctypes.data, gradients.ctypes.data], executor)
+    return energies, gradients
+
+
+def _run(entry, law, args, outputs, executor):
+    """Call the library's ``entry`` on chunks of the batched element ``args``, writing into ``outputs`` (pointers)."""
     lib = library()
     if lib is None:
         raise RuntimeError(f"the compiled element kernel is unavailable: {_state['error']}")
+    q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, sign = args
     m = len(q)
     f64 = np.float64
     q, abar_inv, bbar = (np.ascontiguousarray(a, f64) for a in (q, abar_inv, bbar))
@@ -114,14 +140,12 @@ def hessians(law, q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, s
     kind = np.ascontiguousarray(kind, np.int64)
     direction = np.ascontiguousarray(direction, f64)
     sign = np.ascontiguousarray(np.broadcast_to(np.asarray(sign, f64), (m, 3)))
-    out = np.empty((m, 21, 21))
-    energies, gradients = (np.empty(m), np.empty((m, 21))) if with_gradients else (None, None)
     pointers = [a.ctypes.data for a in (q, abar_inv, bbar, area, hbar)]
-    rest = [kind.ctypes.data, direction.ctypes.data, sign.ctypes.data, LAWS[law], out.ctypes.data,
-            None if energies is None else energies.ctypes.data, None if gradients is None else gradients.ctypes.data]
+    rest = [kind.ctypes.data, direction.ctypes.data, sign.ctypes.data, LAWS[law], *outputs]
+    call = getattr(lib, entry)
 
     def run(start):
-        lib.element_hessians(start, min(m, start + CHUNK), *pointers, float(alpha), float(beta), *rest)
+        call(start, min(m, start + CHUNK), *pointers, float(alpha), float(beta), *rest)
 
     starts = range(0, m, CHUNK)
     if executor is not None and len(starts) > 1:
@@ -129,4 +153,3 @@ def hessians(law, q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, s
     else:
         for s in starts:
             run(s)
-    return (energies, gradients, out) if with_gradients else out

@@ -170,15 +170,18 @@ def energy_of_forms(tape, law):
 
 # ---- emission (C) -------------------------------------------------------------------------------
 
-def emit(name, tape, out, params):
+def emit(name, tape, out, params, hessian=True):
     """C source of ``double name(const double *u, double params..., double *D, double *E, double *grad,
     double *hess)``: the forward-over-reverse sweep of the tape ending at ``out``, returning its value;
-    D and E are (nodes × lanes) scratch, grad (lanes) and hess (lanes × lanes, row-major) the outputs."""
+    D and E are (nodes × lanes) scratch, grad (lanes) and hess (lanes × lanes, row-major) the outputs.
+    ``hessian=False``: ``double name(const double *u, double params..., double *grad)``, the reverse
+    sweep alone (no tangents), whose value and gradient are the same expressions, so the same bits."""
     n_lanes = len(tape.inputs)
     loop = f"for (int l = 0; l < {n_lanes}; l++)"
-    sig = ", ".join(["const double *u"] + [f"double {p}" for p in params] + ["double *D", "double *E", "double *grad",
-                                                                              "double *hess"])
+    scratch = ["double *D", "double *E", "double *grad", "double *hess"] if hessian else ["double *grad"]
+    sig = ", ".join(["const double *u"] + [f"double {p}" for p in params] + scratch)
     lines = [f"static double {name}({sig})", "{"]
+    tangent = lines.append if hessian else (lambda line: None)   # the lines of the second-order sweep
 
     def lane(arr, node):
         return f"{arr}[{node.id * n_lanes} + l]"
@@ -192,7 +195,7 @@ def emit(name, tape, out, params):
         if n.op == "in":
             i = tape.inputs.index(n)
             val[n.id] = f"u[{i}]"
-            lines.append(f"    {loop} D[{n.id * n_lanes} + l] = l == {i} ? 1.0 : 0.0;")
+            tangent(f"    {loop} D[{n.id * n_lanes} + l] = l == {i} ? 1.0 : 0.0;")
             continue
         v = f"v{n.id}"
         val[n.id] = v
@@ -215,27 +218,27 @@ def emit(name, tape, out, params):
                 expr = " + ".join(t for t in ((f"{da} * {B}" if da else None), (f"{A} * {db}" if db else None)) if t)
             else:
                 expr = "(" + " - ".join(t for t in (da or "0.0", (f"{v} * {db}" if db else None)) if t) + f") / {B}"
-            lines.append(f"    {loop} {lane('D', n)} = {expr};")
+            tangent(f"    {loop} {lane('D', n)} = {expr};")
         else:
             fn = {"sqrt": f"sqrt({A})", "log": f"log({A})", "neg": f"-{A}"}[n.op]
             lines.append(f"    const double {v} = {fn};")
             if not n.active:
                 continue
             d = {"sqrt": f"{lane('D', a)} * (0.5 / {v})", "log": f"{lane('D', a)} / {A}", "neg": f"-{lane('D', a)}"}
-            lines.append(f"    {loop} {lane('D', n)} = {d[n.op]};")
+            tangent(f"    {loop} {lane('D', n)} = {d[n.op]};")
     seen = {out.id}
     lines.append(f"    double w{out.id} = 1.0;")
-    lines.append(f"    {loop} {lane('E', out)} = 0.0;")
+    tangent(f"    {loop} {lane('E', out)} = 0.0;")
 
     def accumulate(target, w_expr, e_expr):
         """w_target += w_expr; E[target] += e_expr (the first contribution declares)."""
         if target.id in seen:
             lines.append(f"    w{target.id} += {w_expr};")
-            lines.append(f"    {loop} {lane('E', target)} += {e_expr};")
+            tangent(f"    {loop} {lane('E', target)} += {e_expr};")
         else:
             seen.add(target.id)
             lines.append(f"    double w{target.id} = {w_expr};")
-            lines.append(f"    {loop} {lane('E', target)} = {e_expr};")
+            tangent(f"    {loop} {lane('E', target)} = {e_expr};")
 
     for n in reversed(nodes):                         # reverse: adjoints and their tangents
         if n.op in ("in", "par", "const") or not n.active or n.id not in seen:
@@ -272,10 +275,10 @@ def emit(name, tape, out, params):
     for i, n in enumerate(tape.inputs):
         if n.id in seen:
             lines.append(f"    grad[{i}] = w{n.id};")
-            lines.append(f"    {loop} hess[{i * n_lanes} + l] = {lane('E', n)};")
+            tangent(f"    {loop} hess[{i * n_lanes} + l] = {lane('E', n)};")
         else:
             lines.append(f"    grad[{i}] = 0.0;")
-            lines.append(f"    {loop} hess[{i * n_lanes} + l] = 0.0;")
+            tangent(f"    {loop} hess[{i * n_lanes} + l] = 0.0;")
     lines += [f"    return {val[out.id]};", "}"]
     return "\n".join(lines), len(nodes)
 
@@ -294,16 +297,14 @@ def source() -> str:
     parts += [f"#define {name} {value}" for name, value in
               (("INTERIOR", INTERIOR), ("FREE", FREE), ("CLAMPED", CLAMPED), ("SYMMETRY", SYMMETRY))]
     scratch = 0
-    for kind in EDGE_KINDS:
-        tape = Tape(10, EDGE_PARAMS)
-        code, nodes = emit(f"q_{kind}", tape, edge_q(tape, kind), EDGE_PARAMS)
-        parts += [code, ""]
-        scratch = max(scratch, nodes * 10)
-    for law in LAWS:
-        tape = Tape(6, LAW_PARAMS)
-        code, nodes = emit(f"w_{law.replace('-', '_')}", tape, energy_of_forms(tape, law), LAW_PARAMS)
-        parts += [code, ""]
-        scratch = max(scratch, nodes * 6)
+    pieces = [(f"q_{kind}", 10, EDGE_PARAMS, lambda tape, k=kind: edge_q(tape, k)) for kind in EDGE_KINDS]
+    pieces += [(f"w_{law.replace('-', '_')}", 6, LAW_PARAMS, lambda tape, w=law: energy_of_forms(tape, w)) for law in LAWS]
+    for name, n_inputs, params, build in pieces:       # each with its gradient-only twin (name_gradient)
+        tape = Tape(n_inputs, params)
+        code, nodes = emit(name, tape, build(tape), params)
+        tape = Tape(n_inputs, params)
+        parts += [code, "", emit(f"{name}_gradient", tape, build(tape), params, hessian=False)[0], ""]
+        scratch = max(scratch, nodes * n_inputs)
     parts.append(f"#define SCRATCH {scratch}")
     parts.append(ELEMENT_SOURCE.read_text())
     return "\n".join(parts) + "\n"

@@ -120,14 +120,14 @@ class ShellModel:
         Pin six position components (statically determinate) so that a free
         shell has no rigid-body null space. ``None``: only when no boundary
         condition fixes any position.
-    hessian_kernel : "compiled" or "jax"
-        How the element Hessians are computed (:data:`~femshell.shell.element.HESSIAN_KERNELS`):
-        compiled C (JAX where no C compiler works), or the JAX reference; the same to rounding. Settable later as the
-        attribute of the same name.
+    hessian_kernel, gradient_kernel : "compiled" or "jax"
+        How the element Hessians, and the element energies and gradients, are computed
+        (:data:`~femshell.shell.element.HESSIAN_KERNELS`): compiled C (JAX where no C compiler works), or
+        the JAX reference; the same to rounding. Settable later as the attributes of the same names.
     """
 
     def __init__(self, mesh, material: Material, rest: RestState, boundary_conditions=(), loads=(),
-                 remove_rigid_modes=None, hessian_kernel="compiled"):
+                 remove_rigid_modes=None, hessian_kernel="compiled", gradient_kernel="compiled"):
         if not all(hasattr(mesh, k) for k in ("points", "triangles", "topology")):
             raise TypeError(f"mesh must be a SurfaceMesh (see femshell.mesh), got {type(mesh).__name__}")
         if not isinstance(material, Material):
@@ -150,6 +150,7 @@ class ShellModel:
         self.mesh = mesh
         self.material = material
         self.hessian_kernel = el.check_hessian_kernel(hessian_kernel)
+        self.gradient_kernel = el.check_hessian_kernel(gradient_kernel, "gradient_kernel")
         self.topology = t = mesh.topology
         n, ne, m = mesh.n_vertices, t.n_edges, mesh.n_triangles
         if len(rest.metric) != m:
@@ -359,7 +360,8 @@ class ShellModel:
                 mat.alpha, mat.beta, self.edge_kind_el, self.edge_direction_el, self.face_edge_sign)
 
     def strain_energy(self, u) -> float:
-        return float(np.sum(self._kernels.evaluate(*self._element_args(self.full(u)))[0]))
+        return float(np.sum(self._kernels.evaluate(*self._element_args(self.full(u)),
+                                                   gradient_kernel=self.gradient_kernel)[0]))
 
     def energy_parts(self, u):
         """Membrane and bending energy per element, two (m,) arrays."""
@@ -379,7 +381,8 @@ class ShellModel:
 
     def _element_values_and_gradient(self, u):
         """Element strain energies (m,) and the assembled ∂U/∂u, from one compiled pass."""
-        e, g, _ = self._kernels.evaluate(*self._element_args(self.full(u)), gradient=True)
+        e, g, _ = self._kernels.evaluate(*self._element_args(self.full(u)), gradient=True,
+                                         gradient_kernel=self.gradient_kernel)
         return e, self.assembler.vector(np.asarray(g))
 
     def gradient(self, u) -> np.ndarray:
@@ -390,10 +393,10 @@ class ShellModel:
         return r
 
     def energy_and_gradient(self, u):
-        """(Π, ∂Π/∂u) from one pass over the elements: a gradient costs 2–3 energies, this one gradient.
+        """(Π, ∂Π/∂u) from one pass over the elements.
 
-        The energy is summed from the same element values as :meth:`energy`'s, by another
-        compiled kernel: the two agree to round-off, not always bit for bit.
+        With the compiled kernel (``gradient_kernel``) the energy is :meth:`energy`'s bit for bit; on
+        the JAX path another compiled function sums it: the two agree to round-off, not always bit for bit.
         """
         e, r = self._element_values_and_gradient(u)
         e = float(np.sum(e))

@@ -9,7 +9,8 @@ printed before and after: on a shared machine quote CPU seconds and ratios, not 
 * element Hessian: the (m, 21, 21) element Hessians, JAX (grouped split Hessian) against the
   compiled C kernel (:mod:`femshell.shell.fast_element`); ``Hessian assembled``: plus the scatter
   into the CSR matrix (``ShellModel.hessian``); ``sparsity pattern``: the CSR pattern and scatter
-  positions from all m k² element entries against from the m kn² node pairs;
+  positions from all m k² element entries against from the m kn² node pairs; ``energy and
+  gradient``: ``ShellModel.energy_and_gradient`` by JAX against the compiled reverse sweeps;
 * set-up cold and warm (``--setup``): a fresh process importing femshell, meshing the sphere (gmsh),
   building the model (sparsity pattern; old: from the element entries) and evaluating energy,
   gradient and Hessian once; cold with
@@ -96,6 +97,13 @@ def hessian_section(model, u):
 
     rows.append(("Hessian assembled", assembled("jax"), assembled("compiled")))
     model.hessian_kernel = "compiled"
+
+    def energy_and_gradient(kernel):
+        model.gradient_kernel = kernel
+        model.energy_and_gradient(u)                # compile or load from the caches
+        return measure(lambda: model.energy_and_gradient(u))
+
+    rows.append(("energy and gradient", energy_and_gradient("jax"), energy_and_gradient("compiled")))
     rows.append(("sparsity pattern", measure(lambda: SparseAssembler(model.element_dofs, model.free), repeat=1),
                  measure(lambda: SparseAssembler(model.element_dofs, model.free, nodes=model.assembler_nodes),
                          repeat=1)))
@@ -122,7 +130,7 @@ c1, w1 = cpu(), time.perf_counter()
 mesh = build.make_mesh(scene)
 c2, w2 = cpu(), time.perf_counter()
 model = ShellModel(mesh, Material(1.0, 0.5), flat_rest_state(mesh.points, mesh.triangles, 2.0),
-                   hessian_kernel=kernel)
+                   hessian_kernel=kernel, gradient_kernel=kernel)
 c3, w3 = cpu(), time.perf_counter()
 u = model.initial_unknowns()
 model.energy_and_gradient(u), model.hessian(u)

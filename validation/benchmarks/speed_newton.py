@@ -117,7 +117,7 @@ def run_path(path, n_vertices, rtol=1e-8) -> dict:
     _, _, kernel, solver = PATHS[path]
     factorize(sp.identity(10, format="csr") * 2.0).free()          # loads MKL: not in the first solve's time
     model, u = speed_solve.grown_sphere(n_vertices)
-    model.hessian_kernel = kernel
+    model.hessian_kernel = model.gradient_kernel = kernel
     model.energy(u), model.gradient(u), model.energy_and_gradient(u), model.hessian(u)   # compiled before timing
     profile = Profile()
     instrument(model, profile)
