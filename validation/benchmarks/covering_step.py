@@ -119,6 +119,7 @@ def run_path(loop, scene, snapshot, steps, out_dir):
     pairs = instrument(loop, timers)
     records = []
     load_start = load()
+    wall0 = time.perf_counter()
     try:
         for _ in range(steps):
             t0 = time.process_time()
@@ -140,6 +141,7 @@ def run_path(loop, scene, snapshot, steps, out_dir):
             timers.t["rest"] += (t3 - t0) - (sum(timers.t.values()) - sum0)
     finally:
         timers.unwrap_all(pairs)
+        timers.wall = time.perf_counter() - wall0
     return timers, records, load_start, load()
 
 
@@ -194,7 +196,8 @@ def main():
             pstats.Stats(prof).sort_stats("tottime").print_stats(30)
         results[path] = (timers, records, l0, l1)
         tot = sum(timers.t.values())
-        print(f"  {path}: {len(records)} steps, {tot / len(records):.2f} CPU s per step, load {l0} -> {l1}; "
+        print(f"  {path}: {len(records)} steps, {tot / len(records):.2f} CPU s and {timers.wall / len(records):.2f} wall s "
+              f"per step, load {l0} -> {l1}; "
               + ", ".join(f"step {r.step} newton {r.newton_iterations} cuts {r.cuts}" for r in records), flush=True)
     _print_table(results)
 
