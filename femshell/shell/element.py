@@ -95,14 +95,14 @@ def element_energy(q, abar_inv, bbar, area, hbar, alpha, beta, kind, direction, 
 
 _AXES = (0, 0, 0, 0, 0, None, None, 0, 0, 0)
 
-#: how element Hessians (and energies and gradients) are computed: compiled C (the default) or JAX (the reference)
-HESSIAN_KERNELS = ("compiled", "jax")
+#: how element energies, gradients and Hessians are computed: compiled C (the default) or JAX (the reference)
+ELEMENT_KERNELS = ("compiled", "jax")
 
 
-def check_hessian_kernel(name, key="hessian_kernel"):
-    """``name`` if it is one of :data:`HESSIAN_KERNELS`, else a ValueError naming them (and ``key``)."""
-    if name not in HESSIAN_KERNELS:
-        raise ValueError(f"{key} must be one of {HESSIAN_KERNELS}, got {name!r}")
+def check_element_kernel(name, key="hessian_kernel"):
+    """``name`` if it is one of :data:`ELEMENT_KERNELS`, else a ValueError naming them (and ``key``)."""
+    if name not in ELEMENT_KERNELS:
+        raise ValueError(f"{key} must be one of {ELEMENT_KERNELS}, got {name!r}")
     return name
 CHUNK_SMALL, CHUNK = 256, 4096
 CHUNK_HESSIAN = 256
@@ -270,20 +270,20 @@ class Kernels:
         """The one entry point: element energies (m,), with their gradients (m, 21) if ``gradient``
         and Hessians (m, 21, 21) if ``hessian`` (``interior``: the elements whose three edges are
         interior, :meth:`hessian_grouped`; ``hessian_kernel`` and ``gradient_kernel``, for the Hessians
-        and for the energies and gradients: one of :data:`HESSIAN_KERNELS`, compiled only for the
+        and for the energies and gradients: one of :data:`ELEMENT_KERNELS`, compiled only for the
         mid-edge formulation). Returns (energies, gradients or None, Hessians or None);
         energies are None when only the Hessian is asked for (it does not need them).
         """
         energies = gradients = hessians = None
         if gradient or not hessian:
-            if check_hessian_kernel(gradient_kernel, "gradient_kernel") == "compiled" and self._compiled():
+            if check_element_kernel(gradient_kernel, "gradient_kernel") == "compiled" and self._compiled():
                 energies, gradients = fast_element.energies_and_gradients(self.law, *args, executor=_threads())
                 gradients = gradients if gradient else None
             elif gradient:
                 energies, gradients = self.value_and_grad(*args)
             else:
                 energies = self.energy(*args)
-        if hessian and check_hessian_kernel(hessian_kernel) == "compiled" and self._compiled():
+        if hessian and check_element_kernel(hessian_kernel) == "compiled" and self._compiled():
             hessians = fast_element.hessians(self.law, *args, executor=_threads())
         elif hessian:
             interior = (np.asarray(args[7]) == INTERIOR).all(axis=1) if interior is None else interior

@@ -122,7 +122,7 @@ class ShellModel:
         condition fixes any position.
     hessian_kernel, gradient_kernel : "compiled" or "jax"
         How the element Hessians, and the element energies and gradients, are computed
-        (:data:`~femshell.shell.element.HESSIAN_KERNELS`): compiled C (JAX where no C compiler works), or
+        (:data:`~femshell.shell.element.ELEMENT_KERNELS`): compiled C (JAX where no C compiler works), or
         the JAX reference; the same to rounding. Settable later as the attributes of the same names.
     """
 
@@ -149,8 +149,8 @@ class ShellModel:
                                     f"{'boundary condition' if method == 'apply' else 'load'}")
         self.mesh = mesh
         self.material = material
-        self.hessian_kernel = el.check_hessian_kernel(hessian_kernel)
-        self.gradient_kernel = el.check_hessian_kernel(gradient_kernel, "gradient_kernel")
+        self.hessian_kernel = el.check_element_kernel(hessian_kernel)
+        self.gradient_kernel = el.check_element_kernel(gradient_kernel, "gradient_kernel")
         self.topology = t = mesh.topology
         n, ne, m = mesh.n_vertices, t.n_edges, mesh.n_triangles
         if len(rest.metric) != m:
