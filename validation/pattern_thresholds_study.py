@@ -89,6 +89,13 @@ def start_loop(args, log):
     return loop, info
 
 
+def angles_from(problem, vertex):
+    """The sphere's radius and every rest vertex's angle from ``vertex`` seen from the centre (radians)."""
+    rest = problem.shell.mesh.points
+    r = np.linalg.norm(rest, axis=1)
+    return float(r[0]), np.arccos(np.clip(rest @ rest[vertex] / (r * r[vertex]), -1.0, 1.0))
+
+
 def branch_measures(problem, z) -> dict:
     """A row's columns: :func:`~femshell.scene.pattern_output.pattern_measures`, and the largest c farther
     than twice the spot radius from the peak (``max_c_far``, where a second spot would nucleate) with its
@@ -97,10 +104,7 @@ def branch_measures(problem, z) -> dict:
 
     out = pattern_measures(problem, z)
     _, c = problem.split(z)
-    rest = problem.shell.mesh.points
-    radius = float(np.linalg.norm(rest[0]))
-    peak = rest[int(np.argmax(c))]
-    angle = np.arccos(np.clip(rest @ peak / (np.linalg.norm(rest, axis=1) * np.linalg.norm(peak)), -1.0, 1.0))
+    radius, angle = angles_from(problem, int(np.argmax(c)))
     far = radius * angle > 2.0 * out["spot_radius"] if math.isfinite(out["spot_radius"]) else np.ones(len(c), bool)
     i = int(np.flatnonzero(far)[np.argmax(c[far])]) if np.any(far) else None
     out["max_c_far"] = math.nan if i is None else float(c[i])
@@ -116,12 +120,10 @@ def mode_place(problem, z, mode) -> dict:
     u, c = problem.split(z)
     f = critical_mode_fields(problem, z, mode)
     points = problem.shell.positions(u)
-    i, peak = int(np.argmax(np.abs(f["mode_c"]))), int(np.argmax(c))
-    radius = float(np.linalg.norm(problem.shell.mesh.points[0]))
-    a, b = problem.shell.mesh.points[i], problem.shell.mesh.points[peak]
-    angle = math.acos(max(-1.0, min(1.0, float(a @ b) / (np.linalg.norm(a) * np.linalg.norm(b)))))
+    i = int(np.argmax(np.abs(f["mode_c"])))
+    radius, angle = angles_from(problem, int(np.argmax(c)))
     participation = float(np.sum(f["mode_c"] ** 2) ** 2 / np.sum(f["mode_c"] ** 4))
-    return {"vertex": i, "distance_from_peak": radius * angle, "c_there": float(c[i]),
+    return {"vertex": i, "distance_from_peak": radius * float(angle[i]), "c_there": float(c[i]),
             "c_star": problem.params.c_star, "position": [float(v) for v in points[i]],
             "vertices_carrying_it": participation}
 
